@@ -1,0 +1,30 @@
+"""The ``scara-c11`` command."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(prog="scara-c11", description="ARGESIM C11 SCARA robot benchmark")
+    commands = parser.add_subparsers(dest="command", required=True)
+    rep = commands.add_parser("reproduce", help="the seed paper's tables beside ours, and its figures")
+    rep.add_argument("--out", type=Path, default=Path("c11-results"), help="folder for the PNG figures")
+    rep.add_argument("--repeats", type=int, default=5, help="timing repeats of task a (best of)")
+    bench = commands.add_parser("bench", help="speed figures, measured side by side")
+    bench.add_argument("--quick", action="store_true", help="small sizes: a smoke check")
+    args = parser.parse_args(argv)
+    if args.command == "reproduce":
+        if args.repeats < 1:
+            parser.error(f"--repeats must be >= 1, got {args.repeats}")
+        from scara_gym.reproduce import reproduce
+        reproduce(out=args.out, repeats=args.repeats)
+    elif args.command == "bench":
+        from scara_gym.bench import main as bench_main
+        bench_main(quick=args.quick)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,375 @@
+"""Compiled hybrid integrator: Dormand-Prince 5(4) with located mode switches.
+
+The C11 model is piecewise smooth. Current limits, the critical condition of the
+obstacle rule, the wall plane, the height of the wall and the target band each
+switch a discrete mode; each mode has an event function ``g`` that is positive
+while the mode holds. After every accepted step a sign change of some ``g`` is
+located on the step's quartic dense output (the same polynomial as scipy's RK45)
+by the Illinois method to 1e-12 s; the step is cut there, the mode switched, and
+integration restarts from the event. The voltage saturation of the PD law is only
+a kink (continuous right-hand side) and is left to step-size control.
+
+Error control is scipy's: RMS norm of the embedded error over
+``atol + rtol * max(|y_old|, |y_new|)``, so "the same tolerances" means the same
+thing here and in ``solve_ivp``.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from scara_gym.dynamics import (
+    JIT, current_limit, derivative, free_current_rate, is_critical_state, is_inside_target,
+    target_error, tip_position, voltages,
+)
+from scara_gym.layout import (
+    ACC, C_CRITICAL, C_MAX_STEPS, C_STOP, C_WALL, CRIT_FORCED, CRIT_SWITCH, D_CRIT,
+    E_CRITICAL, E_HEIGHT, E_SIDE, E_TARGET, EV_ABOVE, EV_BELOW, EV_COLLISION,
+    EV_CRITICAL_OFF, EV_CRITICAL_ON, EV_LIMIT_OFF, EV_LIMIT_ON, EV_TARGET_IN, EV_TARGET_OUT,
+    EV_WALL_CROSS, H_OBS, K_EVENTS, K_LAST_EVENT, K_RECORDS, K_REJECTED, K_RHS, K_STEPS,
+    M_ABOVE, M_CRITICAL, M_INSIDE, M_SIDE, N_EVENTS, N_STATE, STATUS_END,
+    STATUS_MAX_STEPS, STATUS_NOT_FINITE, STATUS_STEP_UNDERFLOW, STATUS_STOPPED,
+    STOP_ABOVE, STOP_COLLISION, STOP_CRITICAL, STOP_TARGET, X_OBS,
+)
+
+# Dormand-Prince 5(4) tableau and Shampine's dense output, as in scipy.integrate.RK45
+RK_C = np.array([0.0, 1 / 5, 3 / 10, 4 / 5, 8 / 9, 1.0])
+RK_A = np.array([
+    [0.0, 0.0, 0.0, 0.0, 0.0],
+    [1 / 5, 0.0, 0.0, 0.0, 0.0],
+    [3 / 40, 9 / 40, 0.0, 0.0, 0.0],
+    [44 / 45, -56 / 15, 32 / 9, 0.0, 0.0],
+    [19372 / 6561, -25360 / 2187, 64448 / 6561, -212 / 729, 0.0],
+    [9017 / 3168, -355 / 33, 46732 / 5247, 49 / 176, -5103 / 18656],
+])
+RK_B = np.array([35 / 384, 0.0, 500 / 1113, 125 / 192, -2187 / 6784, 11 / 84])
+RK_E = np.array([-71 / 57600, 0.0, 71 / 16695, -71 / 1920, 17253 / 339200, -22 / 525, 1 / 40])
+RK_P = np.array([
+    [1.0, -8048581381 / 2820520608, 8663915743 / 2820520608, -12715105075 / 11282082432],
+    [0.0, 0.0, 0.0, 0.0],
+    [0.0, 131558114200 / 32700410799, -68118460800 / 10900136933, 87487479700 / 32700410799],
+    [0.0, -1754552775 / 470086768, 14199869525 / 1410260304, -10690763975 / 1880347072],
+    [0.0, 127303824393 / 49829197408, -318862633887 / 49829197408, 701980252875 / 199316789632],
+    [0.0, -282668133 / 205662961, 2019193451 / 616988883, -1453857185 / 822651844],
+    [0.0, 40617522 / 29380423, -110615467 / 29380423, 69997945 / 29380423],
+])
+SAFETY, MIN_FACTOR, MAX_FACTOR = 0.9, 0.2, 10.0
+EVENT_TIME_TOL = 1e-12  # [s] width of the bracket an event is located to
+
+
+@njit(**JIT)
+def event_values(x, p, command, config, modes, volts, g):
+    """g_k(x) for every mode switch, positive while the current mode holds."""
+    voltages(x, p, command, config, modes, volts)
+    for axis in range(3):
+        imax = current_limit(p, axis)
+        if modes[axis] == 0:
+            g[axis] = imax - abs(x[6 + axis])
+        else:  # held: stays held while the free dynamics push outward
+            g[axis] = modes[axis] * free_current_rate(volts[axis], x[3 + axis], modes[axis] * imax, p, axis)
+    x_tip, _, _ = tip_position(x[0], x[1], x[2], p)
+    if config[C_CRITICAL] == CRIT_SWITCH:
+        measure = min(p[D_CRIT] - abs(x_tip - p[X_OBS]), p[H_OBS] - x[2])  # > 0 iff critical
+        g[E_CRITICAL] = measure if modes[M_CRITICAL] == 1 else -measure
+    else:
+        g[E_CRITICAL] = 1.0
+    g[E_SIDE] = modes[M_SIDE] * (x_tip - p[X_OBS]) if config[C_WALL] == 1 else 1.0
+    g[E_HEIGHT] = (x[2] - p[H_OBS]) if modes[M_ABOVE] == 1 else (p[H_OBS] - x[2])
+    error = target_error(x, p)
+    g[E_TARGET] = (p[ACC] - error) if modes[M_INSIDE] == 1 else (error - p[ACC])
+    return g
+
+
+@njit(**JIT)
+def log_event(t, code, axis, ev_t, ev_code, ev_axis, counters):
+    n = counters[K_EVENTS]
+    if n < ev_t.shape[0]:
+        ev_t[n] = t
+        ev_code[n] = code
+        ev_axis[n] = axis
+    counters[K_EVENTS] = n + 1
+
+
+@njit(**JIT)
+def initial_modes(x, p, command, config, modes):
+    """Discrete modes implied by a state at the start of a simulation."""
+    for axis in range(3):
+        modes[axis] = 0
+    if config[C_CRITICAL] == CRIT_FORCED:
+        modes[M_CRITICAL] = 1
+    elif config[C_CRITICAL] == CRIT_SWITCH:
+        modes[M_CRITICAL] = 1 if is_critical_state(x, p) else 0
+    else:
+        modes[M_CRITICAL] = 0
+    x_tip, _, _ = tip_position(x[0], x[1], x[2], p)
+    modes[M_SIDE] = 1 if x_tip >= p[X_OBS] else -1
+    modes[M_ABOVE] = 1 if x[2] >= p[H_OBS] else 0
+    modes[M_INSIDE] = 1 if is_inside_target(x, p) else 0
+
+
+@njit(**JIT)
+def settle_holds(t, x, p, command, config, modes, volts, ev_t, ev_code, ev_axis, counters):
+    """Hold a current at its limit while it pushes outward; release it when it no longer does.
+
+    Needed at the start of every call (a new command can reverse the push) and after events.
+    """
+    voltages(x, p, command, config, modes, volts)
+    for axis in range(3):
+        imax = current_limit(p, axis)
+        current = x[6 + axis]
+        if modes[axis] == 0 and abs(current) > imax:
+            sign = 1 if current > 0 else -1
+            if sign * free_current_rate(volts[axis], x[3 + axis], sign * imax, p, axis) >= 0.0:
+                modes[axis] = sign
+                log_event(t, EV_LIMIT_ON, axis, ev_t, ev_code, ev_axis, counters)
+            x[6 + axis] = sign * imax
+        elif modes[axis] != 0:
+            x[6 + axis] = modes[axis] * imax
+            if modes[axis] * free_current_rate(volts[axis], x[3 + axis], x[6 + axis], p, axis) < 0.0:
+                modes[axis] = 0
+                log_event(t, EV_LIMIT_OFF, axis, ev_t, ev_code, ev_axis, counters)
+
+
+@njit(**JIT)
+def handle_event(k, t, x, p, config, modes, ev_t, ev_code, ev_axis, counters):
+    """Switch the mode of event k at state x; True when the configuration says stop here."""
+    stop_mask = config[C_STOP]
+    stop = False
+    axis = -1
+    if k < 3:
+        axis = k
+        if modes[k] == 0:
+            sign = 1 if x[6 + k] > 0 else -1
+            modes[k] = sign
+            x[6 + k] = sign * current_limit(p, k)
+            code = EV_LIMIT_ON
+        else:
+            modes[k] = 0
+            code = EV_LIMIT_OFF
+    elif k == E_CRITICAL:
+        modes[M_CRITICAL] = 1 - modes[M_CRITICAL]
+        code = EV_CRITICAL_ON if modes[M_CRITICAL] == 1 else EV_CRITICAL_OFF
+        stop = code == EV_CRITICAL_ON and (stop_mask & STOP_CRITICAL) != 0
+    elif k == E_SIDE:
+        modes[M_SIDE] = -modes[M_SIDE]
+        code = EV_COLLISION if x[2] < p[H_OBS] else EV_WALL_CROSS
+        stop = code == EV_COLLISION and (stop_mask & STOP_COLLISION) != 0
+    elif k == E_HEIGHT:
+        modes[M_ABOVE] = 1 - modes[M_ABOVE]
+        code = EV_ABOVE if modes[M_ABOVE] == 1 else EV_BELOW
+        stop = code == EV_ABOVE and (stop_mask & STOP_ABOVE) != 0
+    else:
+        modes[M_INSIDE] = 1 - modes[M_INSIDE]
+        code = EV_TARGET_IN if modes[M_INSIDE] == 1 else EV_TARGET_OUT
+        stop = code == EV_TARGET_IN and (stop_mask & STOP_TARGET) != 0
+    log_event(t, code, axis, ev_t, ev_code, ev_axis, counters)
+    if stop:
+        counters[K_LAST_EVENT] = code
+    return stop
+
+
+@njit(**JIT)
+def rms_norm(values, scale):
+    total = 0.0
+    for i in range(values.shape[0]):
+        ratio = values[i] / scale[i]
+        total += ratio * ratio
+    return math.sqrt(total / values.shape[0])
+
+
+@njit(**JIT)
+def dense_output(x, h, k, theta, out):
+    """State at t + theta h from the step's stages (quartic in theta)."""
+    b = np.empty(7)
+    for s in range(7):
+        b[s] = theta * (RK_P[s, 0] + theta * (RK_P[s, 1] + theta * (RK_P[s, 2] + theta * RK_P[s, 3])))
+    for i in range(x.shape[0]):
+        total = 0.0
+        for s in range(7):
+            total += k[s, i] * b[s]
+        out[i] = x[i] + h * total
+    return out
+
+
+@njit(**JIT)
+def initial_step(x, f0, p, command, config, modes, rtol, atol, volts):
+    """Hairer's starting step, as scipy's select_initial_step (order 5)."""
+    n = x.shape[0]
+    scale = np.empty(n)
+    for i in range(n):
+        scale[i] = atol + rtol * abs(x[i])
+    d0 = rms_norm(x, scale)
+    d1 = rms_norm(f0, scale)
+    h0 = 1e-6 if (d0 < 1e-5 or d1 < 1e-5) else 0.01 * d0 / d1
+    y1 = x + h0 * f0
+    f1 = np.empty(n)
+    derivative(y1, p, command, config, modes, f1, volts)
+    d2 = rms_norm(f1 - f0, scale) / h0
+    if d1 <= 1e-15 and d2 <= 1e-15:
+        h1 = max(1e-6, h0 * 1e-3)
+    else:
+        h1 = (0.01 / max(d1, d2)) ** (1.0 / 5.0)
+    return min(100.0 * h0, h1)
+
+
+@njit(**JIT)
+def record(t, x, p, command, config, modes, volts, rec_t, rec_x, rec_u, counters):
+    n = counters[K_RECORDS]
+    if n < rec_t.shape[0]:
+        voltages(x, p, command, config, modes, volts)
+        rec_t[n] = t
+        rec_x[n, :] = x
+        rec_u[n, :] = volts
+        counters[K_RECORDS] = n + 1
+
+
+@njit(**JIT)
+def integrate(x, t0, t_end, p, command, config, modes, rtol, atol, step_state,
+              rec_t, rec_x, rec_u, ev_t, ev_code, ev_axis, counters):
+    """Advance x (in place) from t0 to t_end or to the first stop event.
+
+    modes is the hybrid mode vector (in/out; fill it with initial_modes once per
+    simulation). step_state = [next step proposal (<= 0: choose), max step] is
+    in/out so that consecutive calls keep their step size. Returns
+    (status, t_reached).
+    """
+    n = N_STATE
+    k = np.empty((7, n))
+    y_new = np.empty(n)
+    y_stage = np.empty(n)
+    x_event = np.empty(n)
+    scale = np.empty(n)
+    err_vec = np.empty(n)
+    volts = np.empty(3)
+    g_old = np.empty(N_EVENTS)
+    g_new = np.empty(N_EVENTS)
+    g_try = np.empty(N_EVENTS)
+    triggered = np.zeros(N_EVENTS, dtype=np.bool_)
+
+    t = t0
+    settle_holds(t, x, p, command, config, modes, volts, ev_t, ev_code, ev_axis, counters)
+    if counters[K_RECORDS] == 0:
+        record(t, x, p, command, config, modes, volts, rec_t, rec_x, rec_u, counters)
+    derivative(x, p, command, config, modes, k[0], volts)
+    counters[K_RHS] += 1
+    event_values(x, p, command, config, modes, volts, g_old)
+    h = step_state[0]
+    h_max = step_state[1]
+    if h <= 0.0:
+        h = initial_step(x, k[0], p, command, config, modes, rtol, atol, volts)
+        counters[K_RHS] += 1
+    budget = config[C_MAX_STEPS]
+    attempts = 0
+    while t < t_end:
+        if attempts >= budget:
+            step_state[0] = h
+            return STATUS_MAX_STEPS, t
+        attempts += 1
+        h_step = min(h, h_max, t_end - t)
+        last = h_step >= t_end - t
+        # Dormand-Prince stages
+        for s in range(1, 6):
+            for i in range(n):
+                total = 0.0
+                for j in range(s):
+                    total += RK_A[s, j] * k[j, i]
+                y_stage[i] = x[i] + h_step * total
+            derivative(y_stage, p, command, config, modes, k[s], volts)
+        for i in range(n):
+            total = 0.0
+            for j in range(6):
+                total += RK_B[j] * k[j, i]
+            y_new[i] = x[i] + h_step * total
+        derivative(y_new, p, command, config, modes, k[6], volts)
+        counters[K_RHS] += 6
+        for i in range(n):
+            total = 0.0
+            for j in range(7):
+                total += RK_E[j] * k[j, i]
+            err_vec[i] = h_step * total
+            scale[i] = atol + rtol * max(abs(x[i]), abs(y_new[i]))
+        err = rms_norm(err_vec, scale)
+        if not math.isfinite(err):
+            h = 0.1 * h_step
+            counters[K_REJECTED] += 1
+            if h < 1e-14 * max(1.0, abs(t)):
+                step_state[0] = h
+                return STATUS_NOT_FINITE, t
+            continue
+        if err > 1.0:
+            h = h_step * max(MIN_FACTOR, SAFETY * err ** -0.2)
+            counters[K_REJECTED] += 1
+            if h < 1e-14 * max(1.0, abs(t)):
+                step_state[0] = h
+                return STATUS_STEP_UNDERFLOW, t
+            continue
+        counters[K_STEPS] += 1
+        factor = MAX_FACTOR if err == 0.0 else min(MAX_FACTOR, SAFETY * err ** -0.2)
+
+        event_values(y_new, p, command, config, modes, volts, g_new)
+        any_event = False
+        for e in range(N_EVENTS):
+            triggered[e] = g_old[e] >= 0.0 and g_new[e] < 0.0
+            any_event = any_event or triggered[e]
+        if not any_event:
+            t = t_end if last else t + h_step
+            x[:] = y_new
+            k[0, :] = k[6, :]
+            g_old[:] = g_new
+            h = max(h, h_step * factor) if last else h_step * factor
+            record(t, x, p, command, config, modes, volts, rec_t, rec_x, rec_u, counters)
+            continue
+
+        # locate the earliest event on the dense output (Illinois), bracket [lo, hi] in theta
+        theta_first = 1.0
+        for e in range(N_EVENTS):
+            if not triggered[e]:
+                continue
+            lo, hi = 0.0, 1.0
+            g_lo, g_hi = g_old[e], g_new[e]
+            side = 0
+            for _ in range(200):
+                if (hi - lo) * h_step <= EVENT_TIME_TOL:
+                    break
+                theta = (lo * g_hi - hi * g_lo) / (g_hi - g_lo)
+                if not (lo < theta < hi):
+                    theta = 0.5 * (lo + hi)
+                dense_output(x, h_step, k, theta, x_event)
+                event_values(x_event, p, command, config, modes, volts, g_try)
+                g_mid = g_try[e]
+                if g_mid < 0.0:
+                    hi, g_hi = theta, g_mid
+                    if side == -1:
+                        g_lo *= 0.5
+                    side = -1
+                else:
+                    lo, g_lo = theta, g_mid
+                    if side == 1:
+                        g_hi *= 0.5
+                    side = 1
+            theta_first = min(theta_first, hi)
+        if theta_first >= 1.0:
+            x_event[:] = y_new
+        else:
+            dense_output(x, h_step, k, theta_first, x_event)
+        event_values(x_event, p, command, config, modes, volts, g_try)
+        t = t_end if (last and theta_first >= 1.0) else t + theta_first * h_step
+        x[:] = x_event
+        stop = False
+        for e in range(N_EVENTS):
+            if triggered[e] and g_try[e] < 0.0:
+                stop = handle_event(e, t, x, p, config, modes, ev_t, ev_code, ev_axis, counters) or stop
+        settle_holds(t, x, p, command, config, modes, volts, ev_t, ev_code, ev_axis, counters)
+        record(t, x, p, command, config, modes, volts, rec_t, rec_x, rec_u, counters)
+        derivative(x, p, command, config, modes, k[0], volts)
+        counters[K_RHS] += 1
+        event_values(x, p, command, config, modes, volts, g_old)
+        h = h_step  # the step up to the event was accurate; keep its size
+        if stop:
+            step_state[0] = h
+            return STATUS_STOPPED, t
+    step_state[0] = h
+    return STATUS_END, t

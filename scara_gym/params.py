@@ -1,0 +1,271 @@
+"""The C11 parameter tree: one frozen, typed, validated set of numbers.
+
+Defaults are the reconstructed set of ``shared/c11-spec.md``: the OpenModelica
+solutions of exercise A60 (ch. 17.2) of P. Junglas, "Praxis der
+Simulationstechnik" (repository modelica-3rdparty/PraxisSimulationstechnik,
+package Kap17, Solutions/ScaraA.mo and ScaraB.mo), a SCARA robot of exactly the
+C11 structure with the same start and target. The obstacle values are not in the
+seed paper; the spec chose them so that the restart variant reproduces the
+seed's 1.4555 s.
+
+Every leaf field carries its unit and allowed range in ``metadata``; the
+validation message names the field path and that range. The hot path does not
+see these objects: :meth:`ScaraParams.to_array` packs them into the flat float
+vector laid out in :mod:`scara_gym.layout`.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass, field
+from typing import Any, Mapping
+
+import numpy as np
+
+from scara_gym import layout
+
+POSITIVE = (0.0, math.inf, "open")
+NON_NEGATIVE = (0.0, math.inf, "closed")
+
+
+def _quantity(default: float, unit: str, allowed=POSITIVE, doc: str = "") -> Any:
+    return field(default=default, metadata={"unit": unit, "range": allowed, "doc": doc})
+
+
+def _range_text(allowed) -> str:
+    low, high, kind = allowed
+    if kind == "open":
+        left = f"> {low:g}"
+    else:
+        left = f">= {low:g}"
+    if math.isinf(high):
+        return left
+    right = f"< {high:g}" if kind == "open" else f"<= {high:g}"
+    return f"{left} and {right}"
+
+
+def _check_quantity(path: str, value: Any, unit: str, allowed) -> None:
+    low, high, kind = allowed
+    text = f"{path} must be a finite number {_range_text(allowed)} [{unit}]"
+    if isinstance(value, bool) or not isinstance(value, (int, float, np.floating, np.integer)):
+        raise TypeError(f"{text}, got {value!r}")
+    value = float(value)
+    if not math.isfinite(value):
+        raise ValueError(f"{text}, got {value!r}")
+    inside = (low < value) if kind == "open" else (low <= value)
+    inside = inside and (value < high if kind == "open" else value <= high)
+    if not inside:
+        raise ValueError(f"{text}, got {value!r}")
+
+
+def _check_vector(path: str, value: Any, unit: str) -> tuple[float, float, float]:
+    try:
+        vector = np.asarray(value, dtype=float)
+    except (TypeError, ValueError):
+        raise TypeError(f"{path} must be 3 finite numbers [{unit}], got {value!r}") from None
+    if vector.shape != (3,) or not np.all(np.isfinite(vector)):
+        raise ValueError(f"{path} must be 3 finite numbers [{unit}], got {value!r}")
+    return tuple(float(v) for v in vector)
+
+
+class _Validated:
+    """Checks every scalar field against its ``metadata`` range after construction."""
+
+    def __post_init__(self) -> None:
+        for f in dataclasses.fields(self):
+            if "range" in f.metadata:
+                _check_quantity(f"{type(self).__name__}.{f.name}", getattr(self, f.name),
+                                f.metadata["unit"], f.metadata["range"])
+                object.__setattr__(self, f.name, float(getattr(self, f.name)))
+
+
+@dataclass(frozen=True)
+class ArmParams(_Validated):
+    """Mechanics of the two links and the vertical load (seed eq. 3-9)."""
+
+    link1_length: float = _quantity(0.4, "m", doc="L1")
+    link2_length: float = _quantity(0.3, "m", doc="L2")
+    link1_mass: float = _quantity(8.0, "kg", doc="m1, uniform rod")
+    link2_mass: float = _quantity(6.0, "kg", doc="m2, uniform rod")
+    end_mass: float = _quantity(2.5, "kg", NON_NEGATIVE,
+                                doc="m_end, stator of the vertical drive at the end of link 2")
+    load_mass: float = _quantity(0.5, "kg", doc="m3L, load moved by the prismatic joint")
+    motor3_rotor_inertia: float = _quantity(9.1e-6, "kg m^2", NON_NEGATIVE,
+                                            doc="th3mot; motors 1 and 2 have none")
+    gravity: float = _quantity(9.81, "m/s^2", NON_NEGATIVE, doc="g")
+
+    @property
+    def theta1(self) -> float:
+        """th1 = m1 L1^2/3 + (m2 + m_end + m3L) L1^2 [kg m^2]."""
+        return (self.link1_mass * self.link1_length**2 / 3
+                + (self.link2_mass + self.end_mass + self.load_mass) * self.link1_length**2)
+
+    @property
+    def theta2(self) -> float:
+        """th2 = (m2 L2/2 + (m_end + m3L) L2) L1 [kg m^2]."""
+        return ((self.link2_mass * self.link2_length / 2
+                 + (self.end_mass + self.load_mass) * self.link2_length) * self.link1_length)
+
+    @property
+    def theta3(self) -> float:
+        """th3 = m2 L2^2/3 + (m_end + m3L) L2^2 [kg m^2]."""
+        return (self.link2_mass * self.link2_length**2 / 3
+                + (self.end_mass + self.load_mass) * self.link2_length**2)
+
+    @property
+    def reach(self) -> float:
+        """Largest tip distance from the base, L1 + L2 [m]."""
+        return self.link1_length + self.link2_length
+
+
+@dataclass(frozen=True)
+class AxisParams(_Validated):
+    """One DC motor with gear and its saturated PD controller (seed eq. 13-16)."""
+
+    resistance: float = _quantity(3.9, "Ohm", doc="R")
+    inductance: float = _quantity(0.0073, "H", doc="L")
+    torque_constant: float = _quantity(0.4, "N m/A", doc="kT (also the back-EMF constant)")
+    gear_ratio: float = _quantity(130.0, "1 (rad/m for the prismatic axis)", doc="u")
+    current_limit: float = _quantity(6.64, "A", doc="Imax")
+    p_gain: float = _quantity(1000.0, "V/rad (V/m)", NON_NEGATIVE, doc="P")
+    d_gain: float = _quantity(10.0, "V s/rad (V s/m)", NON_NEGATIVE, doc="D")
+    voltage_limit: float = _quantity(100.0, "V", doc="Umax")
+
+
+def _default_axes() -> tuple[AxisParams, AxisParams, AxisParams]:
+    # spec table "axis | R | L | kT | u | Imax | P | D | Umax"
+    return (
+        AxisParams(3.9, 0.0073, 0.4, 130.0, 6.64, 1000.0, 10.0, 100.0),
+        AxisParams(50.0, 0.025, 0.25, 100.0, 2.771, 1000.0, 25.0, 75.0),
+        AxisParams(40.0, 0.025, 0.4, 1047.0, 1.732, 5000.0, 10.0, 90.0),
+    )
+
+
+@dataclass(frozen=True)
+class TaskParams:
+    """The point-to-point move of task b."""
+
+    start: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    """q(0) [rad, rad, m]; rates and currents start at 0."""
+    target: tuple[float, float, float] = (2.0, 2.0, 0.3)
+    """q^ [rad, rad, m]."""
+    accuracy: float = _quantity(0.001, "rad (m)", doc="acc: reached when all |q_i - q^_i| < acc")
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "start", _check_vector("TaskParams.start", self.start, "rad, rad, m"))
+        object.__setattr__(self, "target", _check_vector("TaskParams.target", self.target, "rad, rad, m"))
+        _check_quantity("TaskParams.accuracy", self.accuracy, "rad (m)", POSITIVE)
+        object.__setattr__(self, "accuracy", float(self.accuracy))
+
+
+@dataclass(frozen=True)
+class ObstacleParams(_Validated):
+    """The wall of task c and the seed's ``dec`` avoidance rule (seed section 3)."""
+
+    x_position: float = _quantity(0.35, "m", (-math.inf, math.inf, "open"), doc="x_obs, plane of the wall")
+    critical_distance: float = _quantity(0.02, "m", doc="d_crit")
+    height: float = _quantity(0.15, "m", (-math.inf, math.inf, "open"), doc="h_obs")
+    dec: float = _quantity(5e-5, "1", (0.0, 1.0, "closed"),
+                           doc="factor on q1', q2' while critical; the seed's dec")
+    wide_voltage_limits: tuple[float, float, float] = (200.0, 150.0, 180.0)
+    """Umax_wide [V] per axis, the permitted voltage while critical (2 Umax)."""
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        if self.dec <= 0.0:
+            raise ValueError(f"ObstacleParams.dec must be > 0 and <= 1 [1], got {self.dec!r}")
+        limits = _check_vector("ObstacleParams.wide_voltage_limits", self.wide_voltage_limits, "V")
+        if min(limits) <= 0:
+            raise ValueError(f"ObstacleParams.wide_voltage_limits must be > 0 [V], got {limits!r}")
+        object.__setattr__(self, "wide_voltage_limits", limits)
+
+
+@dataclass(frozen=True)
+class ScaraParams:
+    """Root of the parameter tree: arm, three axes, task b and the obstacle of task c."""
+
+    arm: ArmParams = field(default_factory=ArmParams)
+    axes: tuple[AxisParams, AxisParams, AxisParams] = field(default_factory=_default_axes)
+    task: TaskParams = field(default_factory=TaskParams)
+    obstacle: ObstacleParams = field(default_factory=ObstacleParams)
+
+    def __post_init__(self) -> None:
+        for name, cls in (("arm", ArmParams), ("task", TaskParams), ("obstacle", ObstacleParams)):
+            if not isinstance(getattr(self, name), cls):
+                raise TypeError(f"ScaraParams.{name} must be a {cls.__name__}, got {getattr(self, name)!r}")
+        axes = tuple(self.axes)
+        if len(axes) != 3 or not all(isinstance(a, AxisParams) for a in axes):
+            raise TypeError(f"ScaraParams.axes must be 3 AxisParams, got {self.axes!r}")
+        object.__setattr__(self, "axes", axes)
+        # th1 th3 - th2^2 cos^2 q2 > 0 for every q2 is what makes M invertible.
+        if self.arm.theta1 * self.arm.theta3 - self.arm.theta2**2 <= 0:
+            raise ValueError("ScaraParams.arm: th1*th3 - th2^2 must be > 0 (mass matrix singular)")
+
+    @property
+    def vertical_mass(self) -> float:
+        """ma33 = m3L + th3mot u3^2 [kg]: effective mass of the prismatic axis."""
+        return self.arm.load_mass + self.arm.motor3_rotor_inertia * self.axes[2].gear_ratio**2
+
+    @property
+    def voltage_limits(self) -> np.ndarray:
+        return np.array([a.voltage_limit for a in self.axes])
+
+    @property
+    def current_limits(self) -> np.ndarray:
+        return np.array([a.current_limit for a in self.axes])
+
+    def replace(self, overrides: Mapping[str, Any] | None = None, **kwargs: Any) -> "ScaraParams":
+        """A copy with dotted-path overrides, e.g. ``{"arm.load_mass": 1.0, "axes.2.p_gain": 4000}``."""
+        items = dict(overrides or {})
+        items.update(kwargs)
+        result = self
+        for path, value in items.items():
+            result = _replace_path(result, path.split("."), value, path)
+        return result
+
+    def to_array(self) -> np.ndarray:
+        """Pack into the flat float64 vector of :mod:`scara_gym.layout` for the compiled core."""
+        p = np.zeros(layout.N_PARAMS)
+        arm = self.arm
+        p[layout.TH1], p[layout.TH2], p[layout.TH3] = arm.theta1, arm.theta2, arm.theta3
+        p[layout.MA33] = self.vertical_mass
+        p[layout.M3L], p[layout.GRAVITY] = arm.load_mass, arm.gravity
+        p[layout.L1], p[layout.L2] = arm.link1_length, arm.link2_length
+        for i, axis in enumerate(self.axes):
+            base = layout.AXIS0 + layout.AXIS_STRIDE * i
+            p[base + layout.A_R] = axis.resistance
+            p[base + layout.A_L] = axis.inductance
+            p[base + layout.A_KT] = axis.torque_constant
+            p[base + layout.A_GEAR] = axis.gear_ratio
+            p[base + layout.A_IMAX] = axis.current_limit
+            p[base + layout.A_P] = axis.p_gain
+            p[base + layout.A_D] = axis.d_gain
+            p[base + layout.A_UMAX] = axis.voltage_limit
+            p[base + layout.A_UWIDE] = self.obstacle.wide_voltage_limits[i]
+        obs = self.obstacle
+        p[layout.X_OBS], p[layout.D_CRIT] = obs.x_position, obs.critical_distance
+        p[layout.H_OBS], p[layout.DEC] = obs.height, obs.dec
+        p[layout.TARGET:layout.TARGET + 3] = self.task.target
+        p[layout.ACC] = self.task.accuracy
+        return p
+
+
+def _replace_path(node: Any, parts: list[str], value: Any, full: str) -> Any:
+    head, rest = parts[0], parts[1:]
+    if isinstance(node, tuple) and not dataclasses.is_dataclass(node):
+        if not head.isdigit() or int(head) >= len(node):
+            raise KeyError(f"unknown parameter {full!r}: index {head!r} must be 0..{len(node) - 1}")
+        items = list(node)
+        items[int(head)] = _replace_path(items[int(head)], rest, value, full) if rest else value
+        return tuple(items)
+    if not dataclasses.is_dataclass(node):
+        raise KeyError(f"unknown parameter {full!r}")
+    names = [f.name for f in dataclasses.fields(node)]
+    if head not in names:
+        raise KeyError(f"unknown parameter {full!r}: {type(node).__name__} has {', '.join(names)}")
+    new = _replace_path(getattr(node, head), rest, value, full) if rest else value
+    return dataclasses.replace(node, **{head: new})
+
+
+DEFAULT_PARAMS = ScaraParams()

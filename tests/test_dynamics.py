@@ -1,0 +1,104 @@
+"""Analytic checks of the model functions, one equation at a time."""
+
+import math
+
+import numpy as np
+import pytest
+from scipy.integrate import solve_ivp
+
+from scara_gym import layout as L
+from scara_gym.dynamics import (
+    accelerations_explicit, accelerations_implicit, bias_vector, derivative, determinant,
+    free_current_rate, kinetic_energy, mass_matrix, pd_voltage, tip_position,
+)
+from scara_gym.params import DEFAULT_PARAMS
+from scara_gym.tasks import sample_point_to_point
+
+P = DEFAULT_PARAMS.to_array()
+
+
+def test_mass_matrix_is_symmetric_positive_definite_with_the_correct_determinant():
+    for q2 in np.linspace(-math.pi, math.pi, 37):
+        m = mass_matrix(q2, P)
+        assert np.allclose(m, m.T)
+        assert np.all(np.linalg.eigvalsh(m) > 0)
+        assert determinant(q2, P) == pytest.approx(np.linalg.det(m[:2, :2]), rel=1e-12)
+        # the seed's eq. 12 (th1 th3 - th2^2 cos q2) is not the determinant
+    assert determinant(1.0, P) != pytest.approx(P[L.TH1] * P[L.TH3] - P[L.TH2] ** 2 * math.cos(1.0))
+
+
+def test_explicit_and_implicit_accelerations_equal_a_numpy_solve():
+    rng = np.random.default_rng(1)
+    for _ in range(200):
+        q2, v1, v2 = rng.uniform(-4, 4, 3)
+        torques = rng.uniform(-300, 300, 3)
+        expected = np.linalg.solve(mass_matrix(q2, P), bias_vector(q2, v1, v2, *torques, P))
+        assert np.allclose(accelerations_explicit(q2, v1, v2, *torques, P), expected, rtol=1e-12, atol=1e-12)
+        assert np.allclose(accelerations_implicit(q2, v1, v2, *torques, P), expected, rtol=1e-12, atol=1e-12)
+
+
+def test_bias_vector_terms():
+    q2, v1, v2 = 0.7, 1.3, -2.1
+    b = bias_vector(q2, v1, v2, 1.0, 2.0, 3.0, P)
+    assert b[0] == pytest.approx(1.0 + 0.72 * (2 * v1 * v2 + v2**2) * math.sin(q2))
+    assert b[1] == pytest.approx(2.0 - 0.72 * v1**2 * math.sin(q2))
+    assert b[2] == pytest.approx(3.0 - 0.5 * 9.81)
+
+
+def test_tip_kinematics():
+    assert tip_position(0.0, 0.0, 0.1, P) == pytest.approx((0.7, 0.0, 0.1))
+    assert tip_position(math.pi / 2, 0.0, 0.0, P) == pytest.approx((0.0, 0.7, 0.0), abs=1e-15)
+    assert tip_position(0.0, math.pi / 2, 0.0, P) == pytest.approx((0.4, 0.3, 0.0))
+    x, y, _ = tip_position(2.0, 2.0, 0.3, P)
+    assert math.hypot(x, y) == pytest.approx(math.sqrt(0.4**2 + 0.3**2 + 2 * 0.12 * math.cos(2.0)))
+
+
+def test_pd_law_saturates_at_the_given_limit():
+    assert pd_voltage(2.0, 0.0, 0.0, P, 0, 100.0) == 100.0
+    assert pd_voltage(-2.0, 0.0, 0.0, P, 1, 75.0) == -75.0
+    assert pd_voltage(0.3, 0.29, 0.1, P, 2, 90.0) == pytest.approx(5000 * 0.01 - 10 * 0.1)
+
+
+def test_current_equation_uses_the_joint_rate_for_the_back_emf():
+    rate = free_current_rate(50.0, 0.2, 1.0, P, 0)
+    assert rate == pytest.approx((50.0 - 0.4 * 130 * 0.2 - 3.9 * 1.0) / 0.0073)
+
+
+def test_dec_rule_scales_only_the_kinematic_rows():
+    x = np.array([0.3, 0.5, 0.05, 2.0, -3.0, 0.1, 1.0, -0.5, 0.2])
+    config = np.zeros(L.N_CONFIG, dtype=np.int64)
+    config[L.C_DEC] = 1
+    modes = np.zeros(L.N_MODES, dtype=np.int64)
+    plain, volts = np.empty(9), np.empty(3)
+    derivative(x, P, np.array([2.0, 2.0, 0.3]), config, modes, plain, volts)
+    modes[L.M_CRITICAL] = 1
+    slowed = np.empty(9)
+    derivative(x, P, np.array([2.0, 2.0, 0.3]), config, modes, slowed, volts)
+    assert slowed[0] == pytest.approx(5e-5 * 2.0) and slowed[1] == pytest.approx(5e-5 * -3.0)
+    assert np.array_equal(slowed[2:], plain[2:])
+
+
+def test_gravity_offset_of_axis_3_under_pure_p_action():
+    params = DEFAULT_PARAMS.replace({"axes.2.d_gain": 0.0})
+    x = sample_point_to_point([40.0], params)[0]
+    axis = params.axes[2]
+    expected = params.arm.load_mass * params.arm.gravity * axis.resistance / (
+        axis.torque_constant * axis.gear_ratio * axis.p_gain)
+    assert params.task.target[2] - x[2] == pytest.approx(expected, rel=1e-6)
+    assert expected > 1e-6  # the offset is real, not a rounding residue
+
+
+@pytest.mark.parametrize("accelerations", [accelerations_explicit, accelerations_implicit])
+def test_free_motion_conserves_the_kinetic_energy_of_axes_1_and_2(accelerations):
+    def rhs(_t, y):
+        a1, a2, _ = accelerations(y[1], y[2], y[3], 0.0, 0.0, P[L.M3L] * P[L.GRAVITY], P)
+        return [y[2], y[3], a1, a2]
+
+    y0 = [0.0, 0.4, 3.0, -5.0]
+    sol = solve_ivp(rhs, (0.0, 20.0), y0, method="DOP853", rtol=1e-12, atol=1e-12, dense_output=True)
+    energies = [kinetic_energy(y[1], y[2], y[3], 0.0, P) for y in sol.sol(np.linspace(0, 20, 400)).T]
+    assert max(abs(e / energies[0] - 1) for e in energies) < 1e-9
+    # the test has teeth: without the Coriolis terms (b = 0) the rates stay constant while
+    # M(q2) changes, and the energy drifts by far more than the bound above
+    drifted = kinetic_energy(y0[1] + y0[3] * 0.3, y0[2], y0[3], 0.0, P)
+    assert abs(drifted / energies[0] - 1) > 1e-2
