@@ -193,7 +193,7 @@ def voltages(x, p, command, config, modes, out):
 
 @njit(**JIT)
 def derivative(x, p, command, config, modes, out, volts):
-    """x' of the full 9-state model in the current hybrid mode.
+    """x' of the model (9 states and the energy accumulator) in the current hybrid mode.
 
     A held current (modes[i] = +-1) has I_i' = 0. While critical with the dec rule,
     only the kinematic rows are scaled (q1' = dec v1, q2' = dec v2); the mechanics,
@@ -211,11 +211,14 @@ def derivative(x, p, command, config, modes, out, volts):
     out[3] = a1
     out[4] = a2
     out[5] = a3
+    power = 0.0
     for axis in range(3):
         if modes[axis] != 0:
             out[6 + axis] = 0.0
         else:
             out[6 + axis] = free_current_rate(volts[axis], x[3 + axis], x[6 + axis], p, axis)
+        power += volts[axis] * x[6 + axis]
+    out[9] = power
     return out
 
 

@@ -7,7 +7,8 @@ Module-level integers, so that numba folds them into constants.
 Q1, Q2, Q3 = 0, 1, 2            # joint angles [rad], height [m]
 V1, V2, V3 = 3, 4, 5            # rate states [rad/s, rad/s, m/s]
 I1, I2, I3 = 6, 7, 8            # armature currents [A]
-N_STATE = 9
+ENERGY = 9                      # electrical energy drawn since the start, int sum U_i I_i dt [J]
+N_STATE = 10                    # an accumulator, integrated with the state so it is exact
 
 # parameter vector p (ScaraParams.to_array)
 TH1, TH2, TH3, MA33, M3L, GRAVITY, L1, L2 = 0, 1, 2, 3, 4, 5, 6, 7

@@ -67,7 +67,8 @@ class Trajectory:
     t: np.ndarray
     """Times [s], shape (n,)."""
     x: np.ndarray
-    """States (q1, q2, q3, v1, v2, v3, I1, I2, I3), shape (n, 9)."""
+    """States (q1, q2, q3, v1, v2, v3, I1, I2, I3, E), shape (n, 10); E is the electrical
+    energy drawn since the start [J]."""
     voltage: np.ndarray
     """Armature voltages [V], shape (n, 3)."""
     events: list[Event]
@@ -88,6 +89,11 @@ class Trajectory:
     @property
     def currents(self) -> np.ndarray:
         return self.x[:, 6:9]
+
+    @property
+    def energy(self) -> np.ndarray:
+        """Electrical energy drawn since the start, int sum U_i I_i dt [J]."""
+        return self.x[:, 9]
 
     @property
     def tip(self) -> np.ndarray:

@@ -35,7 +35,7 @@ def point_to_point(params: ScaraParams = DEFAULT_PARAMS, *, form: str = "explici
 
 def sample_point_to_point(times, params: ScaraParams = DEFAULT_PARAMS, *, form: str = "explicit",
                           rtol: float = REFERENCE_RTOL, atol: float = REFERENCE_ATOL) -> np.ndarray:
-    """States of task b (without the stop) at the given increasing times, shape (len(times), 9)."""
+    """States of task b (without the stop) at the given increasing times, shape (len(times), 10)."""
     sim = Simulator(params, form=form, stop=(), rtol=rtol, atol=atol, record=0)
     sim.reset(start_state(params), command=params.task.target)
     out = []
@@ -133,7 +133,7 @@ def obstacle_avoidance(params: ScaraParams = DEFAULT_PARAMS, *, variant: str = "
             # the seed resets rates and currents: the decelerated end state is not a
             # consistent initial value of the point-to-point model
             restart = check_state("restart state", climb.x).copy()
-            restart[3:] = 0.0
+            restart[3:9] = 0.0
             final = Simulator(params, stop=stops, **common)
             final.reset(restart, t0=climb.t, command=target)
             status = final.advance(t_end)

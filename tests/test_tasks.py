@@ -45,8 +45,9 @@ def test_restart_variant_resets_rates_and_currents_and_continuous_does_not():
     above = restart.first("above_wall")
     after = np.flatnonzero(restart.t == above)
     assert len(after) >= 2  # end of the climb, start of the restart
-    assert np.any(restart.x[after[0], 3:] != 0)
-    assert np.all(restart.x[after[-1], 3:] == 0)
+    assert np.any(restart.x[after[0], 3:9] != 0)
+    assert np.all(restart.x[after[-1], 3:9] == 0)
+    assert restart.energy[after[-1]] == restart.energy[after[0]] > 0  # the accumulator runs on
     continuous = obstacle_avoidance(variant="continuous")
     i = np.searchsorted(continuous.t, continuous.first("critical_off"))
     assert np.abs(continuous.rates[i, :2]).max() > 1.0  # rates built up during the freeze carry over
