@@ -1,0 +1,86 @@
+"""Top view of the arm, the wall, the target and the tip trace, with a height gauge for q3.
+
+Matplotlib draws into an Agg canvas, so ``rgb_array`` needs no display; ``human``
+shows the same figure in a window.
+"""
+
+from __future__ import annotations
+
+import os
+import sys
+
+import numpy as np
+
+from scara_gym.params import ScaraParams
+
+
+def require_display() -> None:
+    """Fail early, and clearly, where render_mode="human" cannot open a window."""
+    if sys.platform.startswith("linux") and not (os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")):
+        raise RuntimeError("render_mode='human' needs a display (DISPLAY or WAYLAND_DISPLAY is not set); "
+                           "use render_mode='rgb_array' on a headless machine")
+
+
+class ScaraRenderer:
+    def __init__(self, params: ScaraParams, human: bool = False, size=(6.4, 4.8), dpi: int = 100) -> None:
+        import matplotlib
+        if human:
+            import matplotlib.pyplot as plt
+            self.figure = plt.figure(figsize=size, dpi=dpi)
+            plt.ion()
+            plt.show(block=False)
+        else:
+            from matplotlib.backends.backend_agg import FigureCanvasAgg
+            from matplotlib.figure import Figure
+            self.figure = Figure(figsize=size, dpi=dpi)
+            FigureCanvasAgg(self.figure)
+        del matplotlib
+        self.human = human
+        self.params = params
+        grid = self.figure.add_gridspec(1, 2, width_ratios=(5, 1))
+        self.top = self.figure.add_subplot(grid[0])
+        self.gauge = self.figure.add_subplot(grid[1])
+        reach = params.arm.reach * 1.1
+        self.top.set(xlim=(-reach, reach), ylim=(-reach, reach), aspect="equal", xlabel="x [m]", ylabel="y [m]")
+        self.gauge.set(xlim=(0, 1), ylim=(-0.05, 0.45), xticks=[], ylabel="q3 [m]")
+        self.gauge.yaxis.set_label_position("right")
+        self.gauge.yaxis.tick_right()
+        obs = params.obstacle
+        self.wall_band = self.top.axvspan(obs.x_position - obs.critical_distance,
+                                          obs.x_position + obs.critical_distance, color="0.88")
+        self.wall = self.top.axvline(obs.x_position, color="k", lw=3)
+        self.wall_height = self.gauge.axhline(obs.height, color="k", lw=2)
+        (self.trace,) = self.top.plot([], [], color="tab:blue", lw=1, alpha=0.6)
+        (self.arm,) = self.top.plot([], [], "-o", color="tab:gray", lw=6, ms=8)
+        (self.target,) = self.top.plot([], [], "r*", ms=14)
+        self.bar = self.gauge.bar([0.5], [0.0], width=0.6, color="tab:blue")[0]
+        (self.target_height,) = self.gauge.plot([0.1, 0.9], [0, 0], "r-", lw=2)
+        self.label = self.top.text(0.02, 0.98, "", transform=self.top.transAxes, va="top", family="monospace")
+
+    def draw(self, q, target, trace, obstacle: bool, critical: bool, time: float, collisions: int):
+        l1, l2 = self.params.arm.link1_length, self.params.arm.link2_length
+        elbow = (l1 * np.cos(q[0]), l1 * np.sin(q[0]))
+        tip = (elbow[0] + l2 * np.cos(q[0] + q[1]), elbow[1] + l2 * np.sin(q[0] + q[1]))
+        self.arm.set_data([0.0, elbow[0], tip[0]], [0.0, elbow[1], tip[1]])
+        trace = np.asarray(trace)
+        self.trace.set_data(trace[:, 0], trace[:, 1])
+        tl1, tl2 = l1 * np.cos(target[0]), l1 * np.sin(target[0])
+        self.target.set_data([tl1 + l2 * np.cos(target[0] + target[1])], [tl2 + l2 * np.sin(target[0] + target[1])])
+        for artist in (self.wall, self.wall_band, self.wall_height):
+            artist.set_visible(obstacle)
+        self.wall.set_color("tab:red" if critical else "k")
+        self.bar.set_height(q[2])
+        self.target_height.set_ydata([target[2], target[2]])
+        self.label.set_text(f"t = {time:5.2f} s" + (f"   collisions: {collisions}" if collisions else ""))
+        canvas = self.figure.canvas
+        canvas.draw()
+        if self.human:
+            canvas.flush_events()
+            return None
+        return np.asarray(canvas.buffer_rgba())[..., :3].copy()
+
+    def close(self) -> None:
+        if self.human:
+            import matplotlib.pyplot as plt
+            plt.close(self.figure)
+        self.figure = None
