@@ -13,7 +13,8 @@ from gymnasium.envs.registration import register, registry  # noqa: E402
 ENV_ID = "Scara-C11-v0"
 if ENV_ID not in registry:
     # 300 steps of the default 0.01 s control step: the 3 s time limit
-    register(id=ENV_ID, entry_point="scara_gym.envs:ScaraEnv", max_episode_steps=300)
+    register(id=ENV_ID, entry_point="scara_gym.envs:ScaraEnv", max_episode_steps=300,
+             vector_entry_point="scara_gym.envs.vector:ScaraVectorEnv")
 
 __all__ = [
     "ENV_ID",

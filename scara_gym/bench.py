@@ -1,13 +1,21 @@
 """``scara-c11 bench``: speed figures, measured side by side in one run.
 
-Task b to its located stop event: the compiled integrator (explicit and implicit
-form) against scipy's ``solve_ivp`` with the same model functions, the same
-hybrid current-limit modes and the same tolerances.
+1. Task b to its located stop event: the compiled integrator (explicit and implicit
+   form) against scipy's ``solve_ivp`` with the same model functions, the same hybrid
+   current-limit modes and the same tolerances.
+2. One environment through ``gym.make``, random actions, next to Gymnasium's
+   Pendulum-v1 and CartPole-v1 (and MuJoCo's Reacher-v5 where mujoco is installed).
+3. The native vector environment at N robots next to Gymnasium's vectorized CartPole.
+4. Peak memory of the largest vector environment, and cold / warm start of
+   ``gym.make`` + reset + first step (fresh processes; cold = empty JIT cache).
 """
 
 from __future__ import annotations
 
+import os
+import subprocess
 import sys
+import tempfile
 import time
 
 from scara_gym.reference import scipy_point_to_point
@@ -51,12 +59,138 @@ def format_rows(rows: list[dict], rtol: float, atol: float) -> str:
     return "\n".join(lines)
 
 
+def _steps_per_second(env, steps: int, seed: int = 0) -> float:
+    """Random actions (seeded), resetting at episode ends, timed over `steps` steps."""
+    env.reset(seed=seed)
+    env.action_space.seed(seed)
+    actions = [env.action_space.sample() for _ in range(steps)]
+    env.step(actions[0])
+    started = time.perf_counter()
+    for action in actions:
+        _, _, terminated, truncated, _ = env.step(action)
+        if terminated or truncated:
+            env.reset()
+    return steps / (time.perf_counter() - started)
+
+
+def bench_single(steps: int) -> list[tuple[str, float]]:
+    import gymnasium as gym
+
+    import scara_gym  # noqa: F401
+
+    candidates = [("Scara-C11-v0, pd", "Scara-C11-v0", {"control_mode": "pd"}),
+                  ("Scara-C11-v0, voltage", "Scara-C11-v0", {"control_mode": "voltage"}),
+                  ("Pendulum-v1", "Pendulum-v1", {}), ("CartPole-v1", "CartPole-v1", {})]
+    try:
+        import mujoco  # noqa: F401
+        candidates.append(("Reacher-v5 (MuJoCo)", "Reacher-v5", {}))
+    except ImportError:
+        pass
+    return [(label, _steps_per_second(gym.make(env_id, **kwargs), steps)) for label, env_id, kwargs in candidates]
+
+
+def _vector_steps_per_second(venv, steps: int) -> float:
+    venv.reset(seed=0)
+    venv.action_space.seed(0)
+    actions = [venv.action_space.sample() for _ in range(steps + 1)]
+    venv.step(actions[0])
+    started = time.perf_counter()
+    for action in actions[1:]:
+        venv.step(action)
+    return steps * venv.num_envs / (time.perf_counter() - started)
+
+
+def bench_vector(sizes, steps: int) -> list[tuple[int, float, float]]:
+    import gymnasium as gym
+
+    import scara_gym  # noqa: F401
+
+    rows = []
+    for n in sizes:
+        ours = _vector_steps_per_second(
+            gym.make_vec("Scara-C11-v0", num_envs=n, vectorization_mode="vector_entry_point",
+                         control_mode="voltage", collision="penalty"), steps)
+        cartpole = _vector_steps_per_second(
+            gym.make_vec("CartPole-v1", num_envs=n, vectorization_mode="vector_entry_point"), steps)
+        rows.append((n, ours, cartpole))
+    return rows
+
+
+_START_SCRIPT = """
+import time
+started = time.perf_counter()
+import gymnasium as gym
+import scara_gym
+env = gym.make("Scara-C11-v0")
+env.reset(seed=0)
+env.step(env.action_space.sample())
+print(time.perf_counter() - started)
+"""
+
+_MEMORY_SCRIPT = """
+import resource, sys
+import numpy as np
+import gymnasium as gym
+import scara_gym
+base = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+venv = gym.make_vec("Scara-C11-v0", num_envs=int(sys.argv[1]), vectorization_mode="vector_entry_point")
+venv.reset(seed=0)
+for _ in range(20):
+    venv.step(venv.action_space.sample())
+print(base, resource.getrusage(resource.RUSAGE_SELF).ru_maxrss)
+"""
+
+
+def _run_python(script: str, *args: str, env: dict | None = None) -> str:
+    out = subprocess.run([sys.executable, "-c", script, *args], capture_output=True, text=True,
+                         env={**os.environ, **(env or {})}, check=True)
+    return out.stdout.strip()
+
+
+def bench_start() -> tuple[float, float]:
+    """(cold, warm) seconds for import + gym.make + reset + first step in a fresh process."""
+    with tempfile.TemporaryDirectory() as cache:
+        cold = float(_run_python(_START_SCRIPT, env={"NUMBA_CACHE_DIR": cache}))
+        warm = float(_run_python(_START_SCRIPT, env={"NUMBA_CACHE_DIR": cache}))
+    return cold, warm
+
+
+def bench_memory(n: int) -> tuple[float, float]:
+    """(peak RSS of the process before the vector env, peak RSS after) in MiB."""
+    base, peak = (int(v) for v in _run_python(_MEMORY_SCRIPT, str(n)).split())
+    return base / 1024, peak / 1024
+
+
 def main(quick: bool = False, stream=sys.stdout) -> str:
     repeats = 2 if quick else 7
     chunks = []
     for rtol, atol in ((1e-6, 1e-9),) if quick else ((1e-6, 1e-9), (1e-10, 1e-12)):
         rows = bench_task_b(rtol, atol, repeats)
         chunks.append(format_rows(rows, rtol, atol))
-    text = "\n\n".join(chunks)
-    print(text, file=stream)
-    return text
+        print(chunks[-1] + "\n", file=stream, flush=True)
+
+    single = bench_single(200 if quick else 5000)
+    base = dict(single)["Pendulum-v1"]
+    lines = ["One environment via gym.make, random actions:", "| environment | steps/s | x Pendulum-v1 |",
+             "|---|---|---|"]
+    lines += [f"| {label} | {rate:,.0f} | {rate / base:.2f} |" for label, rate in single]
+    chunks.append("\n".join(lines))
+    print(chunks[-1] + "\n", file=stream, flush=True)
+
+    sizes = (8, 64) if quick else (64, 1024, 4096)
+    vector = bench_vector(sizes, 3 if quick else 20)
+    lines = ["Native vector environment (voltage mode, random actions), gym.make_vec vector_entry_point:",
+             "| N | Scara-C11-v0 steps/s | CartPole-v1 steps/s | ratio |", "|---|---|---|---|"]
+    lines += [f"| {n} | {ours:,.0f} | {cart:,.0f} | {ours / cart:.4f} |" for n, ours, cart in vector]
+    chunks.append("\n".join(lines))
+    print(chunks[-1] + "\n", file=stream, flush=True)
+
+    n_memory = sizes[-1]
+    before, after = bench_memory(n_memory)
+    cold, warm = bench_start()
+    chunks.append(f"Peak memory, vector env with N = {n_memory}: {after:.0f} MiB peak RSS "
+                  f"(process before the env: {before:.0f} MiB, so {after - before:.0f} MiB for the env)\n"
+                  f"Start, import + gym.make + reset + first step in a fresh process: "
+                  f"cold (empty JIT cache) {cold:.1f} s, warm (cached) {warm:.2f} s")
+    print(chunks[-1], file=stream, flush=True)
+    return "\n\n".join(chunks)

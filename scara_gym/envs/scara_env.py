@@ -12,6 +12,10 @@ from gymnasium import spaces
 
 from scara_gym import layout as L
 from scara_gym.dynamics import tip_position, voltages
+from scara_gym.envs.core import (
+    N_RESULT, R_COLLISIONS, R_REACH_TIME, R_REACHED, R_REWARD, R_STATUS, R_TERMS, REWARD_TERMS,
+    control_step, observe, scaled_distance,
+)
 from scara_gym.params import DEFAULT_PARAMS, ScaraParams
 from scara_gym.simulation import Simulator, check_state
 
@@ -25,8 +29,6 @@ SETPOINT_HIGH = np.array([math.pi, math.pi, 0.4])
 TARGET_LOW = np.array([1.5, 1.5, 0.2])
 TARGET_HIGH = np.array([2.5, 2.5, 0.35])
 TARGET_CLEARANCE = 0.02  # [m] a drawn target tip keeps this much beyond the critical band
-# the progress term measures the target error in these units [rad, rad, m]
-DISTANCE_SCALE = np.array([1.0, 1.0, 0.1])
 ANGLE_BOUND = 6 * math.pi   # [rad] observation bound of q1, q2 (clipped beyond)
 HEIGHT_BOUND = 1.0          # [m]
 ANGLE_RATE_BOUND = 20.0     # [rad/s]
@@ -54,6 +56,44 @@ class RewardWeights:
             if isinstance(value, bool) or not isinstance(value, (int, float)) or not (
                     math.isfinite(value) and value >= 0):
                 raise ValueError(f"reward_weights.{f.name} must be a finite number >= 0, got {value!r}")
+
+    def to_array(self) -> np.ndarray:
+        return np.array([getattr(self, name) for name in REWARD_TERMS], dtype=float)
+
+
+def draw_target(rng: np.random.Generator, start: np.ndarray, params: ScaraParams, p: np.ndarray,
+                obstacle: bool) -> np.ndarray:
+    """A target from the documented region that needs the wall passed and is reachable above it."""
+    obs = params.obstacle
+    x_start, _, _ = tip_position(start[0], start[1], start[2], p)
+    start_side = 1.0 if x_start >= obs.x_position else -1.0
+    for _ in range(1000):
+        target = rng.uniform(TARGET_LOW, TARGET_HIGH)
+        if not obstacle:
+            return target
+        x_tip, _, _ = tip_position(target[0], target[1], target[2], p)
+        beyond = (x_tip - obs.x_position) * start_side < -(obs.critical_distance + TARGET_CLEARANCE)
+        if beyond and target[2] >= obs.height + TARGET_CLEARANCE:
+            return target
+    raise RuntimeError("randomize_target: no target in the documented region passes the wall "
+                       "rules with these parameters")
+
+
+def check_actions(action, shape: tuple[int, ...]) -> tuple[np.ndarray, int]:
+    """Finite float64 actions of the given shape, clipped to [-1, 1], and how many were outside."""
+    try:
+        a = np.asarray(action, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise ValueError(f"action must be numbers in [-1, 1] of shape {shape}, got {action!r}") from None
+    if a.shape != shape:
+        raise ValueError(f"action must have shape {shape}, got shape {a.shape}")
+    if not np.isfinite(a).all():
+        raise ValueError(f"action must be finite (allowed range [-1, 1]), got {a.tolist()}")
+    outside = (a > 1.0) | (a < -1.0)
+    count = outside.sum(axis=-1) if a.ndim > 1 else int(outside.sum())
+    if outside.any():
+        a = np.clip(a, -1.0, 1.0)
+    return a, count
 
 
 class ScaraEnv(gym.Env):
@@ -241,6 +281,10 @@ class ScaraEnv(gym.Env):
             widen=self.obstacle, wall=self.obstacle, stop=stops, rtol=rtol, atol=atol,
             max_step=self.control_dt, record=0, max_events=256)
         self._p = self.sim.p  # the kernel reads the target from here
+        self._weights = reward_weights.to_array()
+        self._result = np.zeros(N_RESULT)
+        self._obs = np.zeros(18, dtype=np.float32)
+        self._no_record = (np.empty(0), np.empty((0, L.N_STATE)), np.empty((0, 3)))
 
         self.action_space = spaces.Box(-1.0, 1.0, shape=(3,), dtype=np.float32)
         low, high = self._observation_bounds()
@@ -289,22 +333,29 @@ class ScaraEnv(gym.Env):
         return target
 
     def _check_action(self, action) -> tuple[np.ndarray, int]:
-        try:
-            a = np.asarray(action, dtype=np.float64)
-        except (TypeError, ValueError):
-            raise ValueError(f"action must be 3 numbers in [-1, 1], got {action!r}") from None
-        if a.shape != (3,):
-            raise ValueError(f"action must have shape (3,), got shape {a.shape}")
-        if not np.all(np.isfinite(a)):
-            raise ValueError(f"action must be finite (allowed range [-1, 1]), got {a.tolist()}")
-        outside = int(np.count_nonzero(np.abs(a) > 1.0))
-        if outside:
-            a = np.clip(a, -1.0, 1.0)
-        return a, outside
+        return check_actions(action, (3,))
 
     # -- API ---------------------------------------------------------------------------
     def reset(self, *, seed: int | None = None, options: dict | None = None):
         super().reset(seed=seed)
+        start, target = self.episode_start(self.np_random, options)
+        self.target = target.copy()
+        self._p[L.TARGET:L.TARGET + 3] = target
+        x0 = np.zeros(L.N_STATE)
+        x0[:3] = start
+        self._command = target.copy() if self.control_mode == "pd" else np.zeros(3)
+        self.sim.reset(x0, 0.0, command=self._command)
+        self._distance = scaled_distance(self.sim.x, self._p)
+        self._reach_time = None
+        self._collisions = 0
+        self._needs_reset = False
+        self._trace = [self._tip()]
+        if self.render_mode == "human":
+            self.render()
+        return self._observation(), {"target": self.target.copy(), "start": start.copy()}
+
+    def episode_start(self, rng: np.random.Generator, options: dict | None) -> tuple[np.ndarray, np.ndarray]:
+        """(start, target) of a new episode from the reset options and the episode RNG."""
         options = {} if options is None else dict(options)
         unknown = set(options) - {"target", "start"}
         if unknown:
@@ -313,25 +364,12 @@ class ScaraEnv(gym.Env):
         if "target" in options:
             target = self._check_target(options["target"], "options['target']")
         elif self.randomize_target:
-            target = self._draw_target(start)
+            target = draw_target(rng, start, self.params, self._p, self.obstacle)
         else:
             target = self.default_target
-        self.target = target.copy()
-        self._p[L.TARGET:L.TARGET + 3] = target
-        x0 = np.zeros(L.N_STATE)
-        x0[:3] = start
         if np.max(np.abs(start - target)) < self.params.task.accuracy:
             raise ValueError(f"start {start.tolist()} is already within acc of the target {target.tolist()}")
-        self._command = target.copy() if self.control_mode == "pd" else np.zeros(3)
-        self.sim.reset(x0, 0.0, command=self._command)
-        self._distance = self._scaled_distance(self.sim.x)
-        self._reach_time = None
-        self._collisions = 0
-        self._needs_reset = False
-        self._trace = [self._tip()]
-        if self.render_mode == "human":
-            self.render()
-        return self._observation(), {"target": self.target.copy(), "start": start.copy()}
+        return start.copy(), target.copy()
 
     def step(self, action):
         if self._needs_reset:
@@ -342,34 +380,26 @@ class ScaraEnv(gym.Env):
         else:
             self._command[:] = a
         sim = self.sim
-        t_before, energy_before = sim.t, sim.x[L.ENERGY]
-        sim.clear_events()
-        status = sim.advance(t_before + self.control_dt, self._command)
-        if status < 0:
-            raise RuntimeError(f"integration failed ({sim.status_name(status)}) at t = {sim.t:.6f} s")
-        collisions = 0
-        reached = False
-        for event in sim.events():
-            if event.kind == "collision":
-                collisions += 1
-            elif event.kind == "target_reached" and not reached:
-                reached = True
-                self._reach_time = event.time
+        result = self._result
+        sim.t = control_step(
+            sim.x, sim.t, self.control_dt, self._p, self._command, sim.config, sim.modes, sim.rtol,
+            sim.atol, sim.step_state, self._weights, self._distance, *self._no_record, sim.ev_t,
+            sim.ev_code, sim.ev_axis, sim.counters, result)
+        if result[R_STATUS] < 0:
+            raise RuntimeError(f"integration failed ({sim.status_name(int(result[R_STATUS]))}) "
+                               f"at t = {sim.t:.6f} s")
+        collisions = int(result[R_COLLISIONS])
+        reached = result[R_REACHED] == 1.0
+        if reached:
+            self._reach_time = float(result[R_REACH_TIME])
         self._collisions += collisions
-        distance = self._scaled_distance(sim.x)
-        w = self.reward_weights
-        terms = {
-            "progress": w.progress * (self._distance - distance),
-            "time": -w.time * (sim.t - t_before),
-            "energy": -w.energy * (sim.x[L.ENERGY] - energy_before),
-            "collision": -w.collision * collisions,
-            "success": w.success if reached else 0.0,
-        }
-        self._distance = distance
-        reward = float(sum(terms.values()))
+        self._distance = scaled_distance(sim.x, self._p)
+        terms = dict(zip(REWARD_TERMS, result[R_TERMS:R_TERMS + 5].tolist()))
+        reward = float(result[R_REWARD])
         terminated = reached or (collisions > 0 and self.collision_mode == "terminate")
         self._needs_reset = terminated
-        self._trace.append(self._tip())
+        if self.render_mode is not None:
+            self._trace.append(self._tip())
         info = {
             "reward_terms": terms,
             "is_success": reached,
@@ -391,9 +421,6 @@ class ScaraEnv(gym.Env):
         return self._observation(), reward, terminated, False, info
 
     # -- helpers -----------------------------------------------------------------------
-    def _scaled_distance(self, x) -> float:
-        return float(np.linalg.norm((x[:3] - self.target) / DISTANCE_SCALE))
-
     def _tip(self) -> tuple[float, float, float]:
         x = self.sim.x
         return tip_position(x[0], x[1], x[2], self._p)
@@ -401,38 +428,11 @@ class ScaraEnv(gym.Env):
     def _voltages(self) -> np.ndarray:
         return voltages(self.sim.x, self._p, self._command, self.sim.config, self.sim.modes, np.empty(3))
 
-    def _draw_target(self, start: np.ndarray) -> np.ndarray:
-        obs = self.params.obstacle
-        x_start, _, _ = tip_position(start[0], start[1], start[2], self._p)
-        start_side = 1.0 if x_start >= obs.x_position else -1.0
-        for _ in range(1000):
-            target = self.np_random.uniform(TARGET_LOW, TARGET_HIGH)
-            if not self.obstacle:
-                return target
-            x_tip, _, _ = tip_position(target[0], target[1], target[2], self._p)
-            beyond = (x_tip - obs.x_position) * start_side < -(obs.critical_distance + TARGET_CLEARANCE)
-            if beyond and target[2] >= obs.height + TARGET_CLEARANCE:
-                return target
-        raise RuntimeError("randomize_target: no target in the documented region passes the wall "
-                           "rules with these parameters")
-
     def _observation(self) -> np.ndarray:
-        x = self.sim.x
-        x_tip, y_tip, _ = self._tip()
-        obs = np.empty(18)
-        obs[0:9] = x[0:9]
-        obs[9:12] = self.target - x[:3]
-        obs[12] = x_tip
-        obs[13] = y_tip
-        if self.obstacle:
-            obs[14] = x_tip - self.params.obstacle.x_position
-            obs[15] = x[2] - self.params.obstacle.height
-            obs[16] = float(self.sim.critical)
-        else:
-            obs[14:17] = 0.0
-        obs[17] = max(0.0, 1.0 - self.sim.t / self.time_limit)
         space = self.observation_space
-        return np.clip(obs.astype(np.float32), space.low, space.high)
+        observe(self.sim.x, self._p, self.sim.t, self.time_limit, self.obstacle, self.sim.critical,
+                space.low, space.high, self._obs)
+        return self._obs.copy()
 
     # -- rendering ---------------------------------------------------------------------
     def render(self):

@@ -1,0 +1,122 @@
+"""Compiled per-robot control step shared by the single and the vector environment.
+
+One call integrates one control step with located events, summarizes the events,
+computes the named reward terms and writes the observation. The single environment
+calls it once per step; the vector environment calls it for every robot inside one
+parallel loop, so both give bit-identical rollouts.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit, prange
+
+from scara_gym.dynamics import JIT, tip_position
+from scara_gym.integrator import integrate
+from scara_gym.layout import (
+    ENERGY, EV_COLLISION, EV_TARGET_IN, H_OBS, K_EVENTS, M_CRITICAL, TARGET, X_OBS,
+)
+
+# the progress term measures the target error in these units [rad, rad, m]
+DISTANCE_SCALE = np.array([1.0, 1.0, 0.1])
+
+# reward weight vector
+W_PROGRESS, W_TIME, W_ENERGY, W_COLLISION, W_SUCCESS = range(5)
+REWARD_TERMS = ("progress", "time", "energy", "collision", "success")
+
+# per-step result vector
+R_REWARD = 0
+R_TERMS = 1            # 5 weighted terms, in REWARD_TERMS order
+R_COLLISIONS = 6       # collisions in this step
+R_REACHED = 7          # 1.0 if the target was reached in this step
+R_REACH_TIME = 8       # located instant [s] (NaN if not reached)
+R_DISTANCE = 9         # scaled target distance after the step
+R_STATUS = 10          # integrator status
+N_RESULT = 11
+
+N_OBS = 18
+
+
+@njit(**JIT)
+def scaled_distance(x, p):
+    total = 0.0
+    for i in range(3):
+        e = (x[i] - p[TARGET + i]) / DISTANCE_SCALE[i]
+        total += e * e
+    return math.sqrt(total)
+
+
+@njit(**JIT)
+def observe(x, p, t, time_limit, obstacle, critical, low, high, out):
+    """The 18 observation values of the card, clipped to the space (float32 out)."""
+    x_tip, y_tip, _ = tip_position(x[0], x[1], x[2], p)
+    values = np.empty(N_OBS)
+    for i in range(9):
+        values[i] = x[i]
+    for i in range(3):
+        values[9 + i] = p[TARGET + i] - x[i]
+    values[12] = x_tip
+    values[13] = y_tip
+    if obstacle:
+        values[14] = x_tip - p[X_OBS]
+        values[15] = x[2] - p[H_OBS]
+        values[16] = 1.0 if critical else 0.0
+    else:
+        values[14] = 0.0
+        values[15] = 0.0
+        values[16] = 0.0
+    values[17] = max(0.0, 1.0 - t / time_limit)
+    for i in range(N_OBS):
+        v = np.float32(values[i])
+        out[i] = min(max(v, low[i]), high[i])
+
+
+@njit(**JIT)
+def control_step(x, t, dt, p, command, config, modes, rtol, atol, step_state, weights,
+                 distance_before, rec_t, rec_x, rec_u, ev_t, ev_code, ev_axis, counters, result):
+    """Advance one robot by one control step (or to its stop event); returns the new time."""
+    counters[K_EVENTS] = 0
+    energy_before = x[ENERGY]
+    status, t_new = integrate(x, t, t + dt, p, command, config, modes, rtol, atol, step_state,
+                              rec_t, rec_x, rec_u, ev_t, ev_code, ev_axis, counters)
+    collisions = 0
+    reach_time = math.nan
+    for i in range(min(counters[K_EVENTS], ev_t.shape[0])):
+        if ev_code[i] == EV_COLLISION:
+            collisions += 1
+        elif ev_code[i] == EV_TARGET_IN and math.isnan(reach_time):
+            reach_time = ev_t[i]
+    reached = not math.isnan(reach_time)
+    distance = scaled_distance(x, p)
+    result[R_TERMS + W_PROGRESS] = weights[W_PROGRESS] * (distance_before - distance)
+    result[R_TERMS + W_TIME] = -weights[W_TIME] * (t_new - t)
+    result[R_TERMS + W_ENERGY] = -weights[W_ENERGY] * (x[ENERGY] - energy_before)
+    result[R_TERMS + W_COLLISION] = -weights[W_COLLISION] * collisions
+    result[R_TERMS + W_SUCCESS] = weights[W_SUCCESS] if reached else 0.0
+    total = 0.0
+    for k in range(5):
+        total += result[R_TERMS + k]
+    result[R_REWARD] = total
+    result[R_COLLISIONS] = collisions
+    result[R_REACHED] = 1.0 if reached else 0.0
+    result[R_REACH_TIME] = reach_time
+    result[R_DISTANCE] = distance
+    result[R_STATUS] = status
+    return t_new
+
+
+@njit(cache=True, nogil=True, parallel=True)
+def control_step_batch(active, x, t, dt, p, command, config, modes, rtol, atol, step_state, weights,
+                       distance, rec_t, rec_x, rec_u, ev_t, ev_code, ev_axis, counters, result,
+                       time_limit, obstacle, low, high, obs):
+    """control_step and observe for every active robot, in parallel."""
+    for i in prange(x.shape[0]):
+        if not active[i]:
+            continue
+        t[i] = control_step(x[i], t[i], dt, p[i], command[i], config, modes[i], rtol, atol,
+                            step_state[i], weights, distance[i], rec_t, rec_x, rec_u, ev_t[i],
+                            ev_code[i], ev_axis[i], counters[i], result[i])
+        distance[i] = result[i, R_DISTANCE]
+        observe(x[i], p[i], t[i], time_limit, obstacle, modes[i, M_CRITICAL] == 1, low, high, obs[i])

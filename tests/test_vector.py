@@ -1,0 +1,94 @@
+"""The native vector environment and its stable-baselines3 adapter."""
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+import scara_gym  # noqa: F401
+from scara_gym.envs.vector import ScaraVectorEnv
+
+
+def make_vec(n, **kwargs):
+    return gym.make_vec("Scara-C11-v0", num_envs=n, vectorization_mode="vector_entry_point", **kwargs)
+
+
+@pytest.mark.parametrize("kwargs", [
+    dict(control_mode="voltage", collision="penalty", randomize_target=True),
+    dict(control_mode="pd", randomize_target=True),
+    dict(control_mode="pd", obstacle=False),
+])
+def test_each_sub_environment_is_the_single_environment(kwargs):
+    n, seed, horizon = 4, 21, 320
+    rng = np.random.default_rng(0)
+    actions = rng.uniform(-1.2, 1.2, size=(horizon, n, 3))
+    if kwargs["control_mode"] == "pd":  # head for the target, so that episodes end by success too
+        actions = np.clip(actions * 0.1 + np.array([2 / np.pi, 2 / np.pi, 0.5]), -1, 1)
+    venv = make_vec(n, **kwargs)
+    obs, _ = venv.reset(seed=seed)
+    vec_obs, vec_rew, vec_term, vec_trunc = [obs], [], [], []
+    for k in range(horizon):
+        obs, rew, term, trunc, _ = venv.step(actions[k])
+        vec_obs.append(obs), vec_rew.append(rew), vec_term.append(term), vec_trunc.append(trunc)
+    ended = 0
+    for i in range(n):
+        env = gym.make("Scara-C11-v0", **kwargs)
+        obs, _ = env.reset(seed=seed + i)
+        assert np.array_equal(obs, vec_obs[0][i])
+        for k in range(horizon):
+            obs, rew, term, trunc, _ = env.step(actions[k, i])
+            assert np.array_equal(obs, vec_obs[k + 1][i]), (i, k)
+            assert rew == vec_rew[k][i] and term == vec_term[k][i] and trunc == vec_trunc[k][i]
+            if term or trunc:
+                ended += 1
+                # NextStep autoreset: the following step resets with reward 0
+                assert vec_rew[k + 1][i] == 0.0 and not vec_term[k + 1][i]
+                break
+    assert ended >= 1
+
+
+def test_same_step_autoreset_returns_the_final_observation_in_info():
+    venv = ScaraVectorEnv(num_envs=3, autoreset_mode="SameStep", control_mode="pd")
+    venv.reset(seed=0)
+    action = np.tile(venv.template.setpoint_to_action([2.0, 2.0, 0.3]), (3, 1))
+    for _ in range(100):  # plain PD hits the wall at about 0.36 s
+        obs, _, term, trunc, info = venv.step(action)
+        if term.any():
+            break
+    assert term.all() and info["collision"].all()
+    assert info["_final_obs"].all()
+    assert np.all(info["final_obs"][:, 0] > 0.3)  # q1 at the wall, not the reset q1 = 0
+    assert np.allclose(obs[:, :3], 0.0)  # already reset
+
+
+def test_bad_vector_input():
+    venv = ScaraVectorEnv(num_envs=2)
+    venv.reset(seed=0)
+    with pytest.raises(ValueError, match=r"shape \(2, 3\)"):
+        venv.step(np.zeros(3))
+    with pytest.raises(ValueError, match="finite"):
+        venv.step(np.full((2, 3), np.nan))
+    with pytest.raises(ValueError, match="num_envs"):
+        ScaraVectorEnv(num_envs=0)
+    with pytest.raises(ValueError, match="autoreset_mode"):
+        ScaraVectorEnv(num_envs=2, autoreset_mode="Sometimes")
+    with pytest.raises(ValueError, match="control_mode"):
+        ScaraVectorEnv(num_envs=2, control_mode="torque")
+
+
+def test_ppo_learns_on_the_native_vector_env_through_the_adapter():
+    pytest.importorskip("stable_baselines3")
+    from stable_baselines3 import PPO
+    from stable_baselines3.common.vec_env import VecMonitor
+
+    from scara_gym.sb3 import SB3VecEnv
+
+    venv = VecMonitor(SB3VecEnv(num_envs=8, control_mode="pd", obstacle=False))
+    model = PPO("MlpPolicy", venv, n_steps=64, batch_size=128, n_epochs=2, seed=0, device="cpu")
+    before = [p.detach().clone() for p in model.policy.parameters()]
+    model.learn(total_timesteps=1024)
+    after = list(model.policy.parameters())
+    assert model.num_timesteps >= 1024
+    assert any(not np.allclose(a.detach().numpy(), b.numpy()) for a, b in zip(after, before))
+    obs = venv.reset()
+    actions, _ = model.predict(obs, deterministic=True)
+    assert actions.shape == (8, 3) and np.all(np.abs(actions) <= 1)
