@@ -13,8 +13,8 @@ import math
 import numpy as np
 from numba import njit, prange
 
-from scara_gym.dynamics import JIT, tip_position
-from scara_gym.integrator import integrate
+from scara_gym.dynamics import JIT, tip_position, voltages
+from scara_gym.integrator import initial_modes, integrate
 from scara_gym.layout import (
     ENERGY, EV_COLLISION, EV_TARGET_IN, H_OBS, K_EVENTS, M_CRITICAL, TARGET, X_OBS,
 )
@@ -34,7 +34,9 @@ R_REACHED = 7          # 1.0 if the target was reached in this step
 R_REACH_TIME = 8       # located instant [s] (NaN if not reached)
 R_DISTANCE = 9         # scaled target distance after the step
 R_STATUS = 10          # integrator status
-N_RESULT = 11
+R_VOLTAGE = 11         # 3 armature voltages at the end of the step [V]
+R_TIP = 14             # tip x, y [m] after the step
+N_RESULT = 16
 
 N_OBS = 18
 
@@ -104,7 +106,28 @@ def control_step(x, t, dt, p, command, config, modes, rtol, atol, step_state, we
     result[R_REACH_TIME] = reach_time
     result[R_DISTANCE] = distance
     result[R_STATUS] = status
+    volts = np.empty(3)
+    voltages(x, p, command, config, modes, volts)
+    for i in range(3):
+        result[R_VOLTAGE + i] = volts[i]
+    result[R_TIP], result[R_TIP + 1], _ = tip_position(x[0], x[1], x[2], p)
     return t_new
+
+
+@njit(**JIT)
+def start_episode(x, p, command, config, modes, step_state, counters, dt, time_limit, obstacle,
+                  low, high, obs, result):
+    """Modes, step size, counters and the first observation of a new episode; returns d(q)."""
+    initial_modes(x, p, command, config, modes)
+    step_state[0] = 0.0
+    step_state[1] = dt
+    counters[:] = 0
+    observe(x, p, 0.0, time_limit, obstacle, modes[M_CRITICAL] == 1, low, high, obs)
+    result[:] = 0.0
+    result[R_TIP], result[R_TIP + 1], _ = tip_position(x[0], x[1], x[2], p)
+    distance = scaled_distance(x, p)
+    result[R_DISTANCE] = distance
+    return distance
 
 
 @njit(cache=True, nogil=True, parallel=True)

@@ -22,10 +22,9 @@ from gymnasium.vector.utils import batch_space
 from scara_gym import layout as L
 from scara_gym.envs.core import (
     N_OBS, N_RESULT, R_COLLISIONS, R_REACH_TIME, R_REACHED, R_REWARD, R_STATUS, R_TERMS,
-    REWARD_TERMS, control_step_batch, observe, scaled_distance,
+    REWARD_TERMS, control_step_batch, start_episode,
 )
 from scara_gym.envs.scara_env import ScaraEnv, check_actions
-from scara_gym.integrator import initial_modes
 
 
 class ScaraVectorEnv(VectorEnv):
@@ -109,14 +108,12 @@ class ScaraVectorEnv(VectorEnv):
         self.x[i, :3] = start
         self.t[i] = 0.0
         self.command[i] = target if template.control_mode == "pd" else 0.0
-        initial_modes(self.x[i], self.p[i], self.command[i], self._config, self.modes[i])
-        self.step_state[i] = (0.0, self.control_dt)
-        self.counters[i] = 0
         self.steps[i] = 0
         self.collisions[i] = 0
-        self.distance[i] = scaled_distance(self.x[i], self.p[i])
-        observe(self.x[i], self.p[i], 0.0, template.time_limit, template.obstacle,
-                self.modes[i, L.M_CRITICAL] == 1, self._low, self._high, self.obs[i])
+        self.distance[i] = start_episode(
+            self.x[i], self.p[i], self.command[i], self._config, self.modes[i], self.step_state[i],
+            self.counters[i], self.control_dt, template.time_limit, template.obstacle, self._low,
+            self._high, self.obs[i], self.result[i])
 
     def reset(self, *, seed: int | list[int | None] | None = None, options: dict | None = None):
         if seed is None:
