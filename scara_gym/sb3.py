@@ -2,14 +2,17 @@
 
 SB3 does not accept Gymnasium vector environments; :class:`SB3VecEnv` presents a
 :class:`~scara_gym.envs.vector.ScaraVectorEnv` (in "SameStep" autoreset mode) through
-SB3's ``VecEnv`` interface: ``terminal_observation``, ``TimeLimit.truncated`` and
-``is_success`` in the infos of finished episodes, as SB3's own wrappers produce them.
-Wrap it in ``VecMonitor`` for episode statistics and ``VecNormalize`` as usual.
+SB3's ``VecEnv`` interface: ``terminal_observation``, ``TimeLimit.truncated``,
+``is_success`` and Monitor-style ``episode`` statistics (r, l, t) in the infos of
+finished episodes, as SB3's own wrappers produce them (so no VecMonitor is needed).
+Wrap it in ``VecNormalize`` as usual.
 """
 
 from __future__ import annotations
 
 from typing import Any
+
+import time
 
 import numpy as np
 from stable_baselines3.common.vec_env.base_vec_env import VecEnv
@@ -25,7 +28,9 @@ class SB3VecEnv(VecEnv):
         self.venv = ScaraVectorEnv(num_envs=num_envs, **kwargs)
         super().__init__(num_envs, self.venv.single_observation_space, self.venv.single_action_space)
         self._actions: np.ndarray | None = None
-        self._seeded = False
+        self._returns = np.zeros(num_envs)
+        self._lengths = np.zeros(num_envs, dtype=np.int64)
+        self._started = time.time()
 
     def reset(self):
         seeds = self._seeds
@@ -34,6 +39,8 @@ class SB3VecEnv(VecEnv):
         self.reset_infos = [{"target": info["target"][i]} for i in range(self.num_envs)]
         self._reset_seeds()
         self._reset_options()
+        self._returns[:] = 0.0
+        self._lengths[:] = 0
         return obs
 
     def step_async(self, actions: np.ndarray) -> None:
@@ -42,6 +49,8 @@ class SB3VecEnv(VecEnv):
     def step_wait(self):
         obs, reward, terminated, truncated, info = self.venv.step(self._actions)
         dones = terminated | truncated
+        self._returns += reward
+        self._lengths += 1
         infos: list[dict[str, Any]] = [{} for _ in range(self.num_envs)]
         for i in np.flatnonzero(dones):
             infos[i] = {
@@ -49,7 +58,11 @@ class SB3VecEnv(VecEnv):
                 "TimeLimit.truncated": bool(truncated[i] and not terminated[i]),
                 "is_success": bool(info["is_success"][i]),
                 "collisions": int(info["collisions"][i]),
+                "episode": {"r": float(self._returns[i]), "l": int(self._lengths[i]),
+                            "t": round(time.time() - self._started, 6)},
             }
+            self._returns[i] = 0.0
+            self._lengths[i] = 0
         return obs, reward.astype(np.float32), dones, infos
 
     def close(self) -> None:

@@ -1,0 +1,175 @@
+"""Reference policies for Scara-C11-v0: the PD baseline and the seed paper's ``dec`` heuristic.
+
+Both act through the environment's action interface only (observation in, action
+out), for either control mode:
+
+- "pd" mode: the action is the PD set-point; the environment's PD law makes voltages.
+- "voltage" mode: the policy evaluates the same C11 PD law (``scara_gym.dynamics``)
+  on the observation, once per control step, and commands U / limit, where limit is
+  the voltage permitted at that instant (widened while the observation says critical).
+
+How the seed's model change maps onto actions. The paper slows joints 1-2 by
+replacing q1' = v1, q2' = v2 with q' = dec v while the tip is critical, which freezes
+the arm instantly. No controller can do that to a real arm; the closest a policy can
+do is to stop commanding motion: at the trigger it freezes the set-points of axes 1-2
+at the positions it sees, so the PD law brakes the arm (with the widened voltage the
+environment grants near the wall), while axis 3 keeps climbing to its target. Because
+braking takes distance, the trigger distance ``critical_distance`` is a parameter of
+the policy (the paper's d_crit = 0.02 m is too short for a real stop; see
+``smallest_safe_distance``). ``dec`` sets how much of the remaining way to the target
+the frozen set-point still moves per second (dec = 0: frozen). Release:
+
+- "continue" (the seed's continuous variant): target again as soon as q3 >= h_obs;
+- "restart" (its restart variant): target again once q3 >= h_obs and the arm has come
+  to rest (|q1'|, |q2'| < rest_rate), the policy's counterpart of resetting the rates.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from scara_gym.dynamics import pd_voltage, voltage_limit
+from scara_gym.envs import ScaraEnv
+
+# observation indices (the card of ScaraEnv)
+Q, RATES, TARGET_ERROR = slice(0, 3), slice(3, 6), slice(9, 12)
+WALL_DISTANCE, HEIGHT_MARGIN, CRITICAL = 14, 15, 16
+
+
+class Policy:
+    """obs -> action for one environment; reset() at the start of each episode."""
+
+    name = "policy"
+
+    def __init__(self, env: ScaraEnv) -> None:
+        self.env = env.unwrapped if hasattr(env, "unwrapped") else env
+        self._p = self.env.params.to_array()
+
+    def reset(self) -> None:
+        pass
+
+    def setpoint(self, obs: np.ndarray) -> np.ndarray:
+        raise NotImplementedError
+
+    def __call__(self, obs: np.ndarray) -> np.ndarray:
+        setpoint = self.setpoint(np.asarray(obs, dtype=float))
+        if self.env.control_mode == "pd":
+            return np.clip(self.env.setpoint_to_action(setpoint), -1.0, 1.0)
+        return self.voltage_action(obs, setpoint)
+
+    def voltage_action(self, obs: np.ndarray, setpoint: np.ndarray) -> np.ndarray:
+        """The C11 PD law on the observation, as a fraction of the permitted voltage."""
+        widened = bool(obs[CRITICAL] > 0.5)
+        action = np.empty(3)
+        for axis in range(3):
+            limit = voltage_limit(self._p, axis, widened)
+            volts = pd_voltage(setpoint[axis], float(obs[axis]), float(obs[3 + axis]), self._p, axis, limit)
+            action[axis] = volts / limit
+        return np.clip(action, -1.0, 1.0)
+
+
+class PDPolicy(Policy):
+    """The classical baseline: command the target, ignore the wall."""
+
+    name = "pd"
+
+    def setpoint(self, obs):
+        return obs[Q] + obs[TARGET_ERROR]
+
+
+class DecHeuristic(Policy):
+    """The seed's obstacle rule as a policy (module docstring): freeze, climb, release."""
+
+    def __init__(self, env: ScaraEnv, variant: str = "continue", critical_distance: float = 0.1,
+                 dec: float = 0.0, rest_rate: float = 0.05) -> None:
+        super().__init__(env)
+        if variant not in ("continue", "restart"):
+            raise ValueError(f"variant must be 'continue' or 'restart', got {variant!r}")
+        if not (np.isfinite(critical_distance) and critical_distance > 0):
+            raise ValueError(f"critical_distance must be a finite number > 0 [m], got {critical_distance!r}")
+        if not (np.isfinite(dec) and 0 <= dec <= 1):
+            raise ValueError(f"dec must be in [0, 1], got {dec!r}")
+        if not (np.isfinite(rest_rate) and rest_rate > 0):
+            raise ValueError(f"rest_rate must be a finite number > 0 [rad/s], got {rest_rate!r}")
+        self.variant = variant
+        self.critical_distance = float(critical_distance)
+        self.dec = float(dec)
+        self.rest_rate = float(rest_rate)
+        self.name = f"dec-{variant} (d={critical_distance:g} m)"
+        self.reset()
+
+    def reset(self) -> None:
+        self.phase = "approach"
+        self.frozen = None
+
+    def setpoint(self, obs):
+        target = obs[Q] + obs[TARGET_ERROR]
+        below = obs[HEIGHT_MARGIN] < 0
+        if self.phase == "approach" and below and abs(obs[WALL_DISTANCE]) < self.critical_distance:
+            self.phase = "frozen"
+            self.frozen = obs[Q].copy()
+        if self.phase == "frozen":
+            rested = np.all(np.abs(obs[RATES][:2]) < self.rest_rate)
+            if not below and (self.variant == "continue" or rested):
+                self.phase = "released"
+            else:
+                self.frozen[:2] += self.dec * self.env.control_dt * (target[:2] - self.frozen[:2])
+                return np.array([self.frozen[0], self.frozen[1], target[2]])
+        return target
+
+
+def run_episode(env, policy, seed: int | None = None, options: dict | None = None, record: bool = False):
+    """One episode; returns a summary dict (and the per-step trace if record)."""
+    obs, _ = env.reset(seed=seed, options=options)
+    policy.reset()
+    unwrapped = env.unwrapped
+    total, steps, peak = 0.0, 0, np.zeros(3)
+    trace = [(0.0, *obs[12:16], obs[2])] if record else None
+    info = {}
+    while True:
+        obs, reward, terminated, truncated, info = env.step(policy(obs))
+        total += reward
+        steps += 1
+        peak = np.maximum(peak, np.abs(obs[6:9]))
+        if record:
+            trace.append((info["time"], *obs[12:16], obs[2]))
+        if terminated or truncated:
+            break
+    summary = {
+        "success": bool(info["is_success"]),
+        "collisions": int(info["collisions"]),
+        "reach_time": float(info.get("reach_time", np.nan)),
+        "energy": float(info["energy"]),
+        "peak_current_fraction": float(np.max(peak / unwrapped.params.current_limits)),
+        "return": float(total),
+        "steps": steps,
+    }
+    if record:
+        summary["trace"] = np.array(trace)  # t, tip_x, tip_y, wall_distance, height_margin, q3
+    return summary
+
+
+def smallest_safe_distance(variant: str = "continue", env_kwargs: dict | None = None,
+                           low: float = 0.0, high: float = 0.4, tolerance: float = 1e-3):
+    """Bisection for the smallest trigger distance at which the heuristic clears the wall
+    from the default start; returns (distance, episode summary there)."""
+    import gymnasium as gym
+
+    env = gym.make("Scara-C11-v0", **(env_kwargs or {}))
+
+    def safe(distance: float):
+        result = run_episode(env, DecHeuristic(env, variant, critical_distance=distance), seed=0)
+        return result["collisions"] == 0 and result["success"], result
+
+    ok, result = safe(high)
+    if not ok:
+        raise RuntimeError(f"the {variant} heuristic collides even at critical_distance = {high} m")
+    best = (high, result)
+    while high - low > tolerance:
+        middle = 0.5 * (low + high)
+        ok, result = safe(middle)
+        if ok:
+            high, best = middle, (middle, result)
+        else:
+            low = middle
+    return best

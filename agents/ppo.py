@@ -1,0 +1,207 @@
+"""PPO (stable-baselines3) on Scara-C11-v0, readable top to bottom.
+
+The agent acts through a residual set-point: its output r in [-1, 1]^3 becomes the
+set-point  target + residual_scale * r^3  (the target is read from the observation:
+q + target error). r = 0 commands the target exactly, which the 0.001 success band
+needs; the cube keeps that precise while still letting the agent hold an axis back by
+up to residual_scale. In "pd" mode the set-point is the environment's action; in
+"voltage" mode the agent evaluates the C11 PD law on the observation once per control
+step and commands the voltages (a learned controller with a PD prior).
+
+    python -m agents.train --control-mode pd --seed 0 --out models/ppo_pd
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import time
+from pathlib import Path
+
+import numpy as np
+import yaml
+
+from scara_gym import ENV_ID
+from scara_gym.layout import A_D, A_P, A_UMAX, A_UWIDE, AXIS0, AXIS_STRIDE
+from scara_gym.envs import ScaraEnv
+
+HYPERPARAMS = Path(__file__).with_name("hyperparams") / "ppo.yml"
+
+
+def load_hyperparams(env_id: str = ENV_ID, control_mode: str = "pd", path: Path = HYPERPARAMS) -> dict:
+    table = yaml.safe_load(Path(path).read_text())
+    if env_id not in table or control_mode not in table[env_id]:
+        raise KeyError(f"no PPO hyperparameters for {env_id!r} / {control_mode!r} in {path}")
+    return dict(table[env_id][control_mode])
+
+
+class ResidualSetpoint:
+    """Maps agent outputs r to environment actions, for a batch of raw observations."""
+
+    def __init__(self, template: ScaraEnv, residual_scale) -> None:
+        self.mode = template.control_mode
+        self.scale = np.asarray(residual_scale, dtype=float)
+        self.center = template._setpoint_center
+        self.half = template._setpoint_half
+        p = template.params.to_array()
+        axes = [AXIS0 + AXIS_STRIDE * i for i in range(3)]
+        self.p_gain = np.array([p[a + A_P] for a in axes])
+        self.d_gain = np.array([p[a + A_D] for a in axes])
+        self.limit = np.array([p[a + A_UMAX] for a in axes])
+        self.wide_limit = np.array([p[a + A_UWIDE] for a in axes])
+
+    def __call__(self, obs: np.ndarray, r: np.ndarray) -> np.ndarray:
+        obs = np.atleast_2d(np.asarray(obs, dtype=float))
+        r = np.clip(np.atleast_2d(np.asarray(r, dtype=float)), -1.0, 1.0)
+        target = obs[:, 0:3] + obs[:, 9:12]
+        setpoint = target + self.scale * r**3
+        if self.mode == "pd":
+            action = (setpoint - self.center) / self.half
+        else:
+            limit = np.where(obs[:, 16:17] > 0.5, self.wide_limit, self.limit)
+            volts = self.p_gain * (setpoint - obs[:, 0:3]) - self.d_gain * obs[:, 3:6]
+            action = volts / limit
+        return np.clip(action, -1.0, 1.0)
+
+
+def make_training_env(env_kwargs: dict, hyper: dict, seed: int):
+    from stable_baselines3.common.vec_env import VecEnvWrapper, VecNormalize
+
+    from scara_gym.sb3 import SB3VecEnv
+
+    class Residual(VecEnvWrapper):
+        def __init__(self, venv, mapping):
+            super().__init__(venv)
+            self.mapping = mapping
+            self.last_obs = None
+
+        def reset(self):
+            self.last_obs = self.venv.reset()
+            return self.last_obs
+
+        def step_async(self, actions):
+            self.venv.step_async(self.mapping(self.last_obs, actions))
+
+        def step_wait(self):
+            obs, rewards, dones, infos = self.venv.step_wait()
+            self.last_obs = obs
+            return obs, rewards, dones, infos
+
+    venv = SB3VecEnv(num_envs=hyper["n_envs"], **env_kwargs)
+    venv.seed(seed)
+    mapping = ResidualSetpoint(venv.venv.template, hyper["residual_scale"])
+    venv = Residual(venv, mapping)  # the adapter reports Monitor-style episode statistics
+    return VecNormalize(venv, norm_obs=hyper["norm_obs"], norm_reward=hyper["norm_reward"], gamma=hyper["gamma"]), Residual, mapping
+
+
+def train(control_mode: str = "pd", randomize_target: bool = False, seed: int = 0,
+          total_timesteps: int | None = None, out: str | Path = "models/ppo_pd",
+          hyperparams: dict | None = None, eval_freq: int = 25_000, eval_episodes: int = 10,
+          progress_bar: bool = True, env_id: str = ENV_ID) -> Path:
+    """Train PPO; writes model.zip, vecnormalize.pkl, config.json, checkpoints/, eval/ and tb/."""
+    import gymnasium as gym
+    from stable_baselines3 import PPO
+    from stable_baselines3.common.callbacks import CheckpointCallback, EvalCallback
+    from stable_baselines3.common.monitor import Monitor
+    from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
+
+    hyper = load_hyperparams(env_id, control_mode) if hyperparams is None else dict(hyperparams)
+    total_timesteps = int(total_timesteps or hyper["n_timesteps"])
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    env_kwargs = {"control_mode": control_mode, "randomize_target": randomize_target}
+
+    # 1. training env: the native vector env, residual set-points, episode stats, normalization
+    venv, Residual, mapping = make_training_env(env_kwargs, hyper, seed)
+
+    # 2. evaluation env: one Monitor-wrapped gym.make env with the same mapping and (frozen)
+    #    normalization statistics, synchronized by EvalCallback
+    eval_env = DummyVecEnv([lambda: Monitor(gym.make(env_id, **env_kwargs))])
+    eval_env.seed(seed + 10_000)
+    eval_env = VecNormalize(Residual(eval_env, mapping), norm_obs=hyper["norm_obs"], norm_reward=False,
+                            training=False, gamma=hyper["gamma"])
+
+    # 3. the agent
+    model = PPO(
+        "MlpPolicy", venv, n_steps=hyper["n_steps"], batch_size=hyper["batch_size"],
+        n_epochs=hyper["n_epochs"], gamma=hyper["gamma"], gae_lambda=hyper["gae_lambda"],
+        learning_rate=hyper["learning_rate"], clip_range=hyper["clip_range"],
+        ent_coef=hyper["ent_coef"], max_grad_norm=hyper["max_grad_norm"],
+        policy_kwargs={"net_arch": list(hyper["net_arch"]), "log_std_init": hyper["log_std_init"]},
+        tensorboard_log=str(out / "tb"), seed=seed, device="cpu", verbose=0)
+
+    # 4. learn, with checkpoints and periodic deterministic evaluation
+    per_env = max(1, eval_freq // hyper["n_envs"])
+    callbacks = [
+        CheckpointCallback(per_env * 4, str(out / "checkpoints"), name_prefix="ppo",
+                           save_vecnormalize=True),
+        EvalCallback(eval_env, n_eval_episodes=eval_episodes, eval_freq=per_env,
+                     log_path=str(out / "eval"), best_model_save_path=str(out / "best"),
+                     deterministic=True, verbose=0),
+    ]
+    started = time.perf_counter()
+    model.learn(total_timesteps=total_timesteps, callback=callbacks, progress_bar=progress_bar)
+
+    # 5. save the model with its normalization statistics and how it was made
+    model.save(out / "model.zip")
+    venv.save(str(out / "vecnormalize.pkl"))
+    config = {"env_id": env_id, "env_kwargs": env_kwargs, "seed": seed, "total_timesteps": total_timesteps,
+              "hyperparams": hyper, "train_seconds": time.perf_counter() - started,
+              "command": f"python -m agents.train --control-mode {control_mode} --seed {seed} "
+                         f"--total-timesteps {total_timesteps}"
+                         + (" --randomize-target" if randomize_target else "") + f" --out {out}"}
+    (out / "config.json").write_text(json.dumps(config, indent=2))
+    return out
+
+
+class PPOPolicy:
+    """A saved PPO agent as an obs -> action policy for one environment (agents.policies API)."""
+
+    def __init__(self, env: ScaraEnv, model_dir: str | Path) -> None:
+        import pickle
+
+        from stable_baselines3 import PPO
+
+        model_dir = Path(model_dir)
+        self.env = env.unwrapped if hasattr(env, "unwrapped") else env
+        config = json.loads((model_dir / "config.json").read_text())
+        if config["env_kwargs"]["control_mode"] != self.env.control_mode:
+            raise ValueError(f"{model_dir} was trained in {config['env_kwargs']['control_mode']!r} mode, "
+                             f"the environment is in {self.env.control_mode!r} mode")
+        self.model = PPO.load(model_dir / "model.zip", device="cpu")
+        with open(model_dir / "vecnormalize.pkl", "rb") as f:
+            normalizer = pickle.load(f)
+        self.obs_rms, self.clip_obs, self.epsilon = normalizer.obs_rms, normalizer.clip_obs, normalizer.epsilon
+        self.norm_obs = normalizer.norm_obs
+        self.mapping = ResidualSetpoint(self.env, config["hyperparams"]["residual_scale"])
+        self.name = f"ppo ({model_dir.name})"
+
+    def reset(self) -> None:
+        pass
+
+    def __call__(self, obs: np.ndarray) -> np.ndarray:
+        x = np.asarray(obs, dtype=np.float64)
+        if self.norm_obs:
+            x = np.clip((x - self.obs_rms.mean) / np.sqrt(self.obs_rms.var + self.epsilon),
+                        -self.clip_obs, self.clip_obs)
+        r, _ = self.model.predict(x.astype(np.float32), deterministic=True)
+        return self.mapping(obs, r)[0]
+
+
+def main(argv: list[str] | None = None) -> Path:
+    parser = argparse.ArgumentParser(prog="python -m agents.train", description=__doc__.split("\n\n")[0])
+    parser.add_argument("--env-id", default=ENV_ID)
+    parser.add_argument("--control-mode", choices=("pd", "voltage"), default="pd")
+    parser.add_argument("--randomize-target", action="store_true")
+    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--total-timesteps", type=int, default=None, help="default: n_timesteps of the YAML")
+    parser.add_argument("--hyperparams", type=Path, default=HYPERPARAMS)
+    parser.add_argument("--out", type=Path, default=None)
+    parser.add_argument("--no-progress-bar", action="store_true")
+    args = parser.parse_args(argv)
+    hyper = load_hyperparams(args.env_id, args.control_mode, args.hyperparams)
+    out = args.out or Path("models") / (f"ppo_{args.control_mode}" + ("_random" if args.randomize_target else ""))
+    return train(args.control_mode, args.randomize_target, args.seed, args.total_timesteps, out, hyper,
+                 progress_bar=not args.no_progress_bar, env_id=args.env_id)
+
+
