@@ -28,12 +28,28 @@ from __future__ import annotations
 
 import numpy as np
 
-from scara_gym.dynamics import pd_voltage, voltage_limit
 from scara_gym.envs import ScaraEnv
+from scara_gym.params import ScaraParams
 
 # observation indices (the card of ScaraEnv)
 Q, RATES, TARGET_ERROR = slice(0, 3), slice(3, 6), slice(9, 12)
 WALL_DISTANCE, HEIGHT_MARGIN, CRITICAL = 14, 15, 16
+
+
+class PDLaw:
+    """The C11 PD law on (batches of) observations, as fractions of the permitted voltage."""
+
+    def __init__(self, params: ScaraParams) -> None:
+        self.p_gain = np.array([a.p_gain for a in params.axes])
+        self.d_gain = np.array([a.d_gain for a in params.axes])
+        self.limit = params.voltage_limits
+        self.wide_limit = np.array(params.obstacle.wide_voltage_limits)
+
+    def __call__(self, obs: np.ndarray, setpoint: np.ndarray) -> np.ndarray:
+        obs = np.atleast_2d(obs)
+        limit = np.where(obs[:, CRITICAL:CRITICAL + 1] > 0.5, self.wide_limit, self.limit)
+        volts = self.p_gain * (setpoint - obs[:, Q]) - self.d_gain * obs[:, RATES]
+        return np.clip(volts / limit, -1.0, 1.0)
 
 
 class Policy:
@@ -43,7 +59,7 @@ class Policy:
 
     def __init__(self, env: ScaraEnv) -> None:
         self.env = env.unwrapped if hasattr(env, "unwrapped") else env
-        self._p = self.env.params.to_array()
+        self.pd_law = PDLaw(self.env.params)
 
     def reset(self) -> None:
         pass
@@ -55,17 +71,7 @@ class Policy:
         setpoint = self.setpoint(np.asarray(obs, dtype=float))
         if self.env.control_mode == "pd":
             return np.clip(self.env.setpoint_to_action(setpoint), -1.0, 1.0)
-        return self.voltage_action(obs, setpoint)
-
-    def voltage_action(self, obs: np.ndarray, setpoint: np.ndarray) -> np.ndarray:
-        """The C11 PD law on the observation, as a fraction of the permitted voltage."""
-        widened = bool(obs[CRITICAL] > 0.5)
-        action = np.empty(3)
-        for axis in range(3):
-            limit = voltage_limit(self._p, axis, widened)
-            volts = pd_voltage(setpoint[axis], float(obs[axis]), float(obs[3 + axis]), self._p, axis, limit)
-            action[axis] = volts / limit
-        return np.clip(action, -1.0, 1.0)
+        return self.pd_law(np.asarray(obs, dtype=float), setpoint)[0]
 
 
 class PDPolicy(Policy):

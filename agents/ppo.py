@@ -21,8 +21,8 @@ from pathlib import Path
 import numpy as np
 import yaml
 
+from agents.policies import PDLaw
 from scara_gym import ENV_ID
-from scara_gym.layout import A_D, A_P, A_UMAX, A_UWIDE, AXIS0, AXIS_STRIDE
 from scara_gym.envs import ScaraEnv
 
 HYPERPARAMS = Path(__file__).with_name("hyperparams") / "ppo.yml"
@@ -43,12 +43,7 @@ class ResidualSetpoint:
         self.scale = np.asarray(residual_scale, dtype=float)
         self.center = template._setpoint_center
         self.half = template._setpoint_half
-        p = template.params.to_array()
-        axes = [AXIS0 + AXIS_STRIDE * i for i in range(3)]
-        self.p_gain = np.array([p[a + A_P] for a in axes])
-        self.d_gain = np.array([p[a + A_D] for a in axes])
-        self.limit = np.array([p[a + A_UMAX] for a in axes])
-        self.wide_limit = np.array([p[a + A_UWIDE] for a in axes])
+        self.pd_law = PDLaw(template.params)
 
     def __call__(self, obs: np.ndarray, r: np.ndarray) -> np.ndarray:
         obs = np.atleast_2d(np.asarray(obs, dtype=float))
@@ -56,12 +51,8 @@ class ResidualSetpoint:
         target = obs[:, 0:3] + obs[:, 9:12]
         setpoint = target + self.scale * r**3
         if self.mode == "pd":
-            action = (setpoint - self.center) / self.half
-        else:
-            limit = np.where(obs[:, 16:17] > 0.5, self.wide_limit, self.limit)
-            volts = self.p_gain * (setpoint - obs[:, 0:3]) - self.d_gain * obs[:, 3:6]
-            action = volts / limit
-        return np.clip(action, -1.0, 1.0)
+            return np.clip((setpoint - self.center) / self.half, -1.0, 1.0)
+        return self.pd_law(obs, setpoint)
 
 
 def make_training_env(env_kwargs: dict, hyper: dict, seed: int):
@@ -109,7 +100,8 @@ def train(control_mode: str = "pd", randomize_target: bool = False, seed: int = 
     total_timesteps = int(total_timesteps or hyper["n_timesteps"])
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    env_kwargs = {"control_mode": control_mode, "randomize_target": randomize_target}
+    env_kwargs = {"control_mode": control_mode, "randomize_target": randomize_target,
+                  **hyper.get("env_kwargs", {})}
 
     # 1. training env: the native vector env, residual set-points, episode stats, normalization
     venv, Residual, mapping = make_training_env(env_kwargs, hyper, seed)
