@@ -13,6 +13,8 @@ from __future__ import annotations
 
 import argparse
 import csv
+import json
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -155,6 +157,15 @@ def main(argv: list[str] | None = None) -> list[dict]:
     rows, traces = evaluate(args.policies, args.control_mode, args.randomize_target, args.episodes, args.seed)
     model_dirs = [Path(spec.split(":", 1)[1]) for spec in args.policies if spec.startswith("ppo:")]
     write_outputs(rows, traces, args.out, model_dirs, DEFAULT_PARAMS)
+    for spec, row in zip(args.policies, rows):
+        if spec.startswith("ppo:"):  # the figures a shipped model is tested against
+            (Path(spec.split(":", 1)[1]) / "results.json").write_text(json.dumps({
+                "seed": args.seed, "episodes": args.episodes, "randomize_target": args.randomize_target,
+                "success_rate": row["success rate"], "collision_rate": row["collision rate"],
+                "mean_time_to_target": row["mean time to target [s]"],
+                "worst_time_to_target": row["worst time to target [s]"],
+                "command": "python -m agents.evaluate " + " ".join(sys.argv[1:] if argv is None else argv)},
+                indent=2))
     print(markdown(rows))
     return rows
 

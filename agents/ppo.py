@@ -1,10 +1,11 @@
 """PPO (stable-baselines3) on Scara-C11-v0, readable top to bottom.
 
 The agent acts through a residual set-point: its output r in [-1, 1]^3 becomes the
-set-point  target + residual_scale * r^3  (the target is read from the observation:
-q + target error). r = 0 commands the target exactly, which the 0.001 success band
-needs; the cube keeps that precise while still letting the agent hold an axis back by
-up to residual_scale. In "pd" mode the set-point is the environment's action; in
+set-point  target + residual_scale * deadzone(r),  deadzone(r) = sign(r) max(|r| - z, 0)
+/ (1 - z)  (the target is read from the observation: q + target error). Every |r| < z
+commands the target exactly, which the 0.001 success band needs (a plain linear map
+would ask the policy's mean for 4e-4 precision), while the agent can still hold an axis
+back by up to residual_scale. In "pd" mode the set-point is the environment's action; in
 "voltage" mode the agent evaluates the C11 PD law on the observation once per control
 step and commands the voltages (a learned controller with a PD prior).
 
@@ -38,9 +39,12 @@ def load_hyperparams(env_id: str = ENV_ID, control_mode: str = "pd", path: Path 
 class ResidualSetpoint:
     """Maps agent outputs r to environment actions, for a batch of raw observations."""
 
-    def __init__(self, template: ScaraEnv, residual_scale) -> None:
+    def __init__(self, template: ScaraEnv, residual_scale, deadzone: float = 0.0) -> None:
+        if not 0.0 <= deadzone < 1.0:
+            raise ValueError(f"residual_deadzone must be in [0, 1), got {deadzone!r}")
         self.mode = template.control_mode
         self.scale = np.asarray(residual_scale, dtype=float)
+        self.deadzone = float(deadzone)
         self.center = template._setpoint_center
         self.half = template._setpoint_half
         self.pd_law = PDLaw(template.params)
@@ -49,7 +53,8 @@ class ResidualSetpoint:
         obs = np.atleast_2d(np.asarray(obs, dtype=float))
         r = np.clip(np.atleast_2d(np.asarray(r, dtype=float)), -1.0, 1.0)
         target = obs[:, 0:3] + obs[:, 9:12]
-        setpoint = target + self.scale * r**3
+        shaped = np.sign(r) * np.maximum(np.abs(r) - self.deadzone, 0.0) / (1.0 - self.deadzone)
+        setpoint = target + self.scale * shaped
         if self.mode == "pd":
             return np.clip((setpoint - self.center) / self.half, -1.0, 1.0)
         return self.pd_law(obs, setpoint)
@@ -80,7 +85,7 @@ def make_training_env(env_kwargs: dict, hyper: dict, seed: int):
 
     venv = SB3VecEnv(num_envs=hyper["n_envs"], **env_kwargs)
     venv.seed(seed)
-    mapping = ResidualSetpoint(venv.venv.template, hyper["residual_scale"])
+    mapping = ResidualSetpoint(venv.venv.template, hyper["residual_scale"], hyper.get("residual_deadzone", 0.0))
     venv = Residual(venv, mapping)  # the adapter reports Monitor-style episode statistics
     return VecNormalize(venv, norm_obs=hyper["norm_obs"], norm_reward=hyper["norm_reward"], gamma=hyper["gamma"]), Residual, mapping
 
@@ -165,7 +170,8 @@ class PPOPolicy:
             normalizer = pickle.load(f)
         self.obs_rms, self.clip_obs, self.epsilon = normalizer.obs_rms, normalizer.clip_obs, normalizer.epsilon
         self.norm_obs = normalizer.norm_obs
-        self.mapping = ResidualSetpoint(self.env, config["hyperparams"]["residual_scale"])
+        hyper = config["hyperparams"]
+        self.mapping = ResidualSetpoint(self.env, hyper["residual_scale"], hyper.get("residual_deadzone", 0.0))
         self.name = f"ppo ({model_dir.name})"
 
     def reset(self) -> None:
