@@ -29,10 +29,14 @@ from scara_gym.envs import ScaraEnv
 HYPERPARAMS = Path(__file__).with_name("hyperparams") / "ppo.yml"
 
 
-def load_hyperparams(env_id: str = ENV_ID, control_mode: str = "pd", path: Path = HYPERPARAMS) -> dict:
+def load_hyperparams(env_id: str = ENV_ID, control_mode: str = "pd", path: Path = HYPERPARAMS,
+                     randomize_target: bool = False) -> dict:
+    """The YAML entry env_id -> control mode ("MODE-random" with randomized targets, if present)."""
     table = yaml.safe_load(Path(path).read_text())
     if env_id not in table or control_mode not in table[env_id]:
         raise KeyError(f"no PPO hyperparameters for {env_id!r} / {control_mode!r} in {path}")
+    if randomize_target and f"{control_mode}-random" in table[env_id]:
+        return dict(table[env_id][f"{control_mode}-random"])
     return dict(table[env_id][control_mode])
 
 
@@ -101,7 +105,8 @@ def train(control_mode: str = "pd", randomize_target: bool = False, seed: int = 
     from stable_baselines3.common.monitor import Monitor
     from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
 
-    hyper = load_hyperparams(env_id, control_mode) if hyperparams is None else dict(hyperparams)
+    hyper = (load_hyperparams(env_id, control_mode, randomize_target=randomize_target)
+             if hyperparams is None else dict(hyperparams))
     total_timesteps = int(total_timesteps or hyper["n_timesteps"])
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
@@ -197,7 +202,7 @@ def main(argv: list[str] | None = None) -> Path:
     parser.add_argument("--out", type=Path, default=None)
     parser.add_argument("--no-progress-bar", action="store_true")
     args = parser.parse_args(argv)
-    hyper = load_hyperparams(args.env_id, args.control_mode, args.hyperparams)
+    hyper = load_hyperparams(args.env_id, args.control_mode, args.hyperparams, args.randomize_target)
     out = args.out or Path("models") / (f"ppo_{args.control_mode}" + ("_random" if args.randomize_target else ""))
     return train(args.control_mode, args.randomize_target, args.seed, args.total_timesteps, out, hyper,
                  progress_bar=not args.no_progress_bar, env_id=args.env_id)
