@@ -64,6 +64,8 @@ def evaluate(policies: list[str], control_mode: str = "pd", randomize_target: bo
             "energy [J]": np.mean([r["energy"] for r in results]),
             "peak current [Imax]": np.max([r["peak_current_fraction"] for r in results]),
             "return": np.mean([r["return"] for r in results]),
+            "outcomes": [{"success": r["success"], "collisions": r["collisions"],
+                          "reach_time": None if np.isnan(r["reach_time"]) else r["reach_time"]} for r in results],
         })
     return rows, traces
 
@@ -90,7 +92,7 @@ def write_outputs(rows, traces, out: Path, model_dirs: list[Path], params) -> li
     out.mkdir(parents=True, exist_ok=True)
     (out / "table.md").write_text(markdown(rows) + "\n")
     with open(out / "table.csv", "w", newline="") as f:
-        writer = csv.DictWriter(f, fieldnames=COLUMNS)
+        writer = csv.DictWriter(f, fieldnames=COLUMNS, extrasaction="ignore")
         writer.writeheader()
         writer.writerows(rows)
     written = [out / "table.md", out / "table.csv"]
@@ -164,6 +166,7 @@ def main(argv: list[str] | None = None) -> list[dict]:
                 "success_rate": row["success rate"], "collision_rate": row["collision rate"],
                 "mean_time_to_target": row["mean time to target [s]"],
                 "worst_time_to_target": row["worst time to target [s]"],
+                "episodes_outcomes": row["outcomes"],
                 "command": "python -m agents.evaluate " + " ".join(sys.argv[1:] if argv is None else argv)},
                 indent=2))
     print(markdown(rows))
