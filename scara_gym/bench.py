@@ -38,10 +38,10 @@ def bench_task_b(rtol: float = 1e-6, atol: float = 1e-9, repeats: int = 5,
     point_to_point(form="implicit", rtol=rtol, atol=atol)
     rows = []
     for form in ("explicit", "implicit"):
-        best, reach = _best(lambda: point_to_point(form=form, rtol=rtol, atol=atol).reach_time, repeats)
+        best, reach = _best(lambda form=form: point_to_point(form=form, rtol=rtol, atol=atol).reach_time, repeats)
         rows.append({"solver": f"scara_gym compiled DOPRI5, {form}", "runtime": best, "reach": reach})
     for method in scipy_methods:
-        best, reach = _best(lambda: scipy_point_to_point(method=method, rtol=rtol, atol=atol)[0],
+        best, reach = _best(lambda method=method: scipy_point_to_point(method=method, rtol=rtol, atol=atol)[0],
                             max(1, repeats // 2))
         rows.append({"solver": f"scipy solve_ivp {method}, explicit", "runtime": best, "reach": reach})
     base = rows[0]["runtime"]

@@ -170,10 +170,10 @@ def write_figures(runs: dict[str, Trajectory], params: ScaraParams, out: Path) -
     ax.legend(fontsize=8)
     save(fig, "task_c_tip_paths.png")
 
-    for dec_label, names, filename, title in (
-            ("5e-5", ("restart, dec 5e-5", "continuous, dec 5e-5"), "task_c_distance.png",
+    for names, filename, title in (
+            (("restart, dec 5e-5", "continuous, dec 5e-5"), "task_c_distance.png",
              "Task c, dec = 5e-5 (seed Fig. 4 and 6)"),
-            ("5e-3", ("restart, dec 5e-3", "continuous, dec 5e-3"), "task_c_dec_5e-3.png",
+            (("restart, dec 5e-3", "continuous, dec 5e-3"), "task_c_dec_5e-3.png",
              "Task c, dec = 5e-3 (seed Fig. 8)")):
         fig, (top, bottom) = plt.subplots(2, 1, sharex=True, figsize=(7, 6))
         for name in names:
