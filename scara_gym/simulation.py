@@ -221,10 +221,6 @@ class Simulator:
             self.ev_t, self.ev_code, self.ev_axis, self.counters)
         return status
 
-    def clear_events(self) -> None:
-        """Forget the logged events (a long-running caller reads them chunk by chunk)."""
-        self.counters[L.K_EVENTS] = 0
-
     def status_name(self, status: int) -> str:
         if status == L.STATUS_STOPPED:
             return _STOP_NAMES[int(self.counters[L.K_LAST_EVENT])]
