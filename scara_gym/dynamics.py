@@ -20,6 +20,9 @@ from scara_gym.layout import (
 )
 
 JIT = dict(cache=True, nogil=True, fastmath=False, error_model="numpy")
+# for the functions of the integrator's inner loop: a compiled call with array arguments
+# costs reference counting on each array, more than the arithmetic of these bodies
+JIT_INLINE = dict(JIT, inline="always")
 
 
 @njit(**JIT)
@@ -178,7 +181,7 @@ def is_inside_target(x, p):
     return target_error(x, p) < p[ACC]
 
 
-@njit(**JIT)
+@njit(**JIT_INLINE)
 def voltages(x, p, command, config, modes, out):
     """Armature voltages for the configured control: PD law or commanded fraction of the limit."""
     widened = modes[M_CRITICAL] == 1 and config[C_WIDEN] == 1
@@ -191,33 +194,56 @@ def voltages(x, p, command, config, modes, out):
     return out
 
 
-@njit(**JIT)
+@njit(**JIT_INLINE)
 def derivative(x, p, command, config, modes, out, volts):
     """x' of the model (9 states and the energy accumulator) in the current hybrid mode.
 
     A held current (modes[i] = +-1) has I_i' = 0. While critical with the dec rule,
     only the kinematic rows are scaled (q1' = dec v1, q2' = dec v2); the mechanics,
     back-EMF and PD damping keep using the rate states v.
+
+    The hot loop of every simulation: one pass over the axes with the voltage law,
+    eq. 13 and T_i = kT_i u_i I_i written out (the same arithmetic as pd_voltage,
+    free_current_rate and joint_torque, which the tests compare it with), then the
+    mechanics in the configured form.
     """
-    voltages(x, p, command, config, modes, volts)
+    widened = modes[M_CRITICAL] == 1 and config[C_WIDEN] == 1
+    pd = config[C_CONTROL] == CONTROL_PD
+    power = 0.0
+    t1 = t2 = t3 = 0.0
+    for axis in range(3):
+        base = AXIS0 + AXIS_STRIDE * axis
+        limit = p[base + A_UWIDE] if widened else p[base + A_UMAX]
+        if pd:
+            u = p[base + A_P] * (command[axis] - x[axis]) - p[base + A_D] * x[3 + axis]
+            u = min(max(u, -limit), limit)
+        else:
+            u = command[axis] * limit
+        volts[axis] = u
+        ku = p[base + A_KT] * p[base + A_GEAR]
+        current = x[6 + axis]
+        if modes[axis] != 0:
+            out[6 + axis] = 0.0
+        else:
+            out[6 + axis] = (u - ku * x[3 + axis] - p[base + A_R] * current) / p[base + A_L]
+        power += u * current
+        if axis == 0:
+            t1 = ku * current
+        elif axis == 1:
+            t2 = ku * current
+        else:
+            t3 = ku * current
     dec = p[DEC] if (modes[M_CRITICAL] == 1 and config[C_DEC] == 1) else 1.0
-    t1 = joint_torque(x[6], p, 0)
-    t2 = joint_torque(x[7], p, 1)
-    t3 = joint_torque(x[8], p, 2)
-    a1, a2, a3 = accelerations(x[1], x[3], x[4], t1, t2, t3, p, config[C_FORM])
+    if config[C_FORM] == FORM_EXPLICIT:
+        a1, a2, a3 = accelerations_explicit(x[1], x[3], x[4], t1, t2, t3, p)
+    else:
+        a1, a2, a3 = accelerations_implicit(x[1], x[3], x[4], t1, t2, t3, p)
     out[0] = dec * x[3]
     out[1] = dec * x[4]
     out[2] = x[5]
     out[3] = a1
     out[4] = a2
     out[5] = a3
-    power = 0.0
-    for axis in range(3):
-        if modes[axis] != 0:
-            out[6 + axis] = 0.0
-        else:
-            out[6 + axis] = free_current_rate(volts[axis], x[3 + axis], x[6 + axis], p, axis)
-        power += volts[axis] * x[6 + axis]
     out[9] = power
     return out
 

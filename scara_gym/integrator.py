@@ -22,7 +22,7 @@ import numpy as np
 from numba import njit
 
 from scara_gym.dynamics import (
-    JIT, current_limit, derivative, free_current_rate, is_critical_state, is_inside_target,
+    JIT, JIT_INLINE, current_limit, derivative, free_current_rate, is_critical_state, is_inside_target,
     target_error, tip_position, voltages,
 )
 from scara_gym.layout import (
@@ -56,11 +56,19 @@ RK_P = np.array([
     [0.0, -282668133 / 205662961, 2019193451 / 616988883, -1453857185 / 822651844],
     [0.0, 40617522 / 29380423, -110615467 / 29380423, 69997945 / 29380423],
 ])
+# the same coefficients as scalars, for the written-out stages
+A21 = RK_A[1, 0]
+A31, A32 = RK_A[2, 0], RK_A[2, 1]
+A41, A42, A43 = RK_A[3, 0], RK_A[3, 1], RK_A[3, 2]
+A51, A52, A53, A54 = RK_A[4, 0], RK_A[4, 1], RK_A[4, 2], RK_A[4, 3]
+A61, A62, A63, A64, A65 = RK_A[5, 0], RK_A[5, 1], RK_A[5, 2], RK_A[5, 3], RK_A[5, 4]
+B1, B3, B4, B5, B6 = RK_B[0], RK_B[2], RK_B[3], RK_B[4], RK_B[5]
+E1, E3, E4, E5, E6, E7 = RK_E[0], RK_E[2], RK_E[3], RK_E[4], RK_E[5], RK_E[6]
 SAFETY, MIN_FACTOR, MAX_FACTOR = 0.9, 0.2, 10.0
 EVENT_TIME_TOL = 1e-12  # [s] width of the bracket an event is located to
 
 
-@njit(**JIT)
+@njit(**JIT_INLINE)
 def event_values(x, p, command, config, modes, volts, g):
     """g_k(x) for every mode switch, positive while the current mode holds."""
     voltages(x, p, command, config, modes, volts)
@@ -171,7 +179,7 @@ def handle_event(k, t, x, p, config, modes, ev_t, ev_code, ev_axis, counters):
     return stop
 
 
-@njit(**JIT)
+@njit(**JIT_INLINE)
 def rms_norm(values, scale):
     total = 0.0
     for i in range(values.shape[0]):
@@ -180,17 +188,18 @@ def rms_norm(values, scale):
     return math.sqrt(total / values.shape[0])
 
 
-@njit(**JIT)
+@njit(**JIT_INLINE)
 def dense_output(x, h, k, theta, out):
     """State at t + theta h from the step's stages (quartic in theta)."""
-    b = np.empty(7)
-    for s in range(7):
-        b[s] = theta * (RK_P[s, 0] + theta * (RK_P[s, 1] + theta * (RK_P[s, 2] + theta * RK_P[s, 3])))
-    for i in range(x.shape[0]):
-        total = 0.0
-        for s in range(7):
-            total += k[s, i] * b[s]
-        out[i] = x[i] + h * total
+    b0 = theta * (RK_P[0, 0] + theta * (RK_P[0, 1] + theta * (RK_P[0, 2] + theta * RK_P[0, 3])))
+    b2 = theta * (RK_P[2, 0] + theta * (RK_P[2, 1] + theta * (RK_P[2, 2] + theta * RK_P[2, 3])))
+    b3 = theta * (RK_P[3, 0] + theta * (RK_P[3, 1] + theta * (RK_P[3, 2] + theta * RK_P[3, 3])))
+    b4 = theta * (RK_P[4, 0] + theta * (RK_P[4, 1] + theta * (RK_P[4, 2] + theta * RK_P[4, 3])))
+    b5 = theta * (RK_P[5, 0] + theta * (RK_P[5, 1] + theta * (RK_P[5, 2] + theta * RK_P[5, 3])))
+    b6 = theta * (RK_P[6, 0] + theta * (RK_P[6, 1] + theta * (RK_P[6, 2] + theta * RK_P[6, 3])))
+    for i in range(x.shape[0]):  # row 1 of RK_P is zero
+        out[i] = x[i] + h * (k[0, i] * b0 + k[2, i] * b2 + k[3, i] * b3 + k[4, i] * b4
+                             + k[5, i] * b5 + k[6, i] * b6)
     return out
 
 
@@ -215,7 +224,7 @@ def initial_step(x, f0, p, command, config, modes, rtol, atol, volts):
     return min(100.0 * h0, h1)
 
 
-@njit(**JIT)
+@njit(**JIT_INLINE)
 def record(t, x, p, command, config, modes, volts, rec_t, rec_x, rec_u, counters):
     n = counters[K_RECORDS]
     if n < rec_t.shape[0]:
@@ -237,16 +246,18 @@ def integrate(x, t0, t_end, p, command, config, modes, rtol, atol, step_state,
     (status, t_reached).
     """
     n = N_STATE
-    k = np.empty((7, n))
-    y_new = np.empty(n)
-    y_stage = np.empty(n)
-    x_event = np.empty(n)
-    scale = np.empty(n)
-    err_vec = np.empty(n)
-    volts = np.empty(3)
-    g_old = np.empty(N_EVENTS)
-    g_new = np.empty(N_EVENTS)
-    g_try = np.empty(N_EVENTS)
+    work = np.empty((12, n))  # one allocation per call: this runs once per control step
+    k = work[:7]
+    y_new = work[7]
+    y_stage = work[8]
+    x_event = work[9]
+    scale = work[10]
+    err_vec = work[11]
+    small = np.empty((4, N_EVENTS))
+    volts = small[3, :3]
+    g_old = small[0]
+    g_new = small[1]
+    g_try = small[2]
     triggered = np.zeros(N_EVENTS, dtype=np.bool_)
 
     t = t0
@@ -270,26 +281,31 @@ def integrate(x, t0, t_end, p, command, config, modes, rtol, atol, step_state,
         attempts += 1
         h_step = min(h, h_max, t_end - t)
         last = h_step >= t_end - t
-        # Dormand-Prince stages
-        for s in range(1, 6):
-            for i in range(n):
-                total = 0.0
-                for j in range(s):
-                    total += RK_A[s, j] * k[j, i]
-                y_stage[i] = x[i] + h_step * total
-            derivative(y_stage, p, command, config, modes, k[s], volts)
+        # Dormand-Prince stages, written out (row j of RK_A, RK_B, RK_E; zero entries left out)
         for i in range(n):
-            total = 0.0
-            for j in range(6):
-                total += RK_B[j] * k[j, i]
-            y_new[i] = x[i] + h_step * total
+            y_stage[i] = x[i] + h_step * (A21 * k[0, i])
+        derivative(y_stage, p, command, config, modes, k[1], volts)
+        for i in range(n):
+            y_stage[i] = x[i] + h_step * (A31 * k[0, i] + A32 * k[1, i])
+        derivative(y_stage, p, command, config, modes, k[2], volts)
+        for i in range(n):
+            y_stage[i] = x[i] + h_step * (A41 * k[0, i] + A42 * k[1, i] + A43 * k[2, i])
+        derivative(y_stage, p, command, config, modes, k[3], volts)
+        for i in range(n):
+            y_stage[i] = x[i] + h_step * (A51 * k[0, i] + A52 * k[1, i] + A53 * k[2, i] + A54 * k[3, i])
+        derivative(y_stage, p, command, config, modes, k[4], volts)
+        for i in range(n):
+            y_stage[i] = x[i] + h_step * (A61 * k[0, i] + A62 * k[1, i] + A63 * k[2, i] + A64 * k[3, i]
+                                          + A65 * k[4, i])
+        derivative(y_stage, p, command, config, modes, k[5], volts)
+        for i in range(n):
+            y_new[i] = x[i] + h_step * (B1 * k[0, i] + B3 * k[2, i] + B4 * k[3, i] + B5 * k[4, i]
+                                        + B6 * k[5, i])
         derivative(y_new, p, command, config, modes, k[6], volts)
         counters[K_RHS] += 6
         for i in range(n):
-            total = 0.0
-            for j in range(7):
-                total += RK_E[j] * k[j, i]
-            err_vec[i] = h_step * total
+            err_vec[i] = h_step * (E1 * k[0, i] + E3 * k[2, i] + E4 * k[3, i] + E5 * k[4, i]
+                                   + E6 * k[5, i] + E7 * k[6, i])
             scale[i] = atol + rtol * max(abs(x[i]), abs(y_new[i]))
         err = rms_norm(err_vec, scale)
         if not math.isfinite(err):

@@ -15,7 +15,8 @@ def test_reproduce_prints_the_tables_and_writes_the_figures(tmp_path, capsys):
 def test_bench_quick_runs_and_reports_ratios(capsys):
     assert main(["bench", "--quick"]) == 0
     out = capsys.readouterr().out
-    for section in ("x Pendulum-v1", "| Scara-C11-v0, voltage |", "| 64 |", "Peak memory", "cold (empty JIT cache)"):
+    for section in ("x Pendulum-v1", "| Scara-C11-v0, voltage |", "| voltage | 64 |", "| pd | 64 |",
+                    "Integration tolerance", "| 1e-05 | 1e-06 |", "Peak memory", "cold (empty JIT cache)"):
         assert section in out
     assert "scipy solve_ivp RK45" in out and "scara_gym compiled DOPRI5, implicit" in out
     reach_times = [float(line.split("|")[4].strip().rstrip(" s")) for line in out.splitlines()

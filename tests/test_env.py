@@ -270,14 +270,44 @@ def test_bad_actions_raise_clear_errors(action, words):
     env.step(np.zeros(3))  # the state is not lost
 
 
-def test_out_of_range_actions_are_clipped_and_counted():
+@pytest.mark.parametrize("wild", [
+    np.array([3.0, -2.0, 0.5]),                     # float64, the compiled fast path
+    np.array([3.0, -2.0, 0.5], dtype=np.float32),   # float32, the action space's dtype
+    [3.0, -2.0, 0.5],                               # a list: converted first
+    np.array([[3.0, 9.0], [-2.0, 9.0], [0.5, 9.0]])[:, 0],  # not contiguous
+])
+def test_out_of_range_actions_are_clipped_and_counted(wild):
     env, twin = ScaraEnv(control_mode="voltage"), ScaraEnv(control_mode="voltage")
     env.reset(seed=0)
     twin.reset(seed=0)
-    obs, _, _, _, info = env.step(np.array([3.0, -2.0, 0.5]))
+    obs, _, _, _, info = env.step(wild)
     obs_clipped, _, _, _, info_clipped = twin.step(np.array([1.0, -1.0, 0.5]))
     assert info["clipped_actions"] == 2 and info_clipped["clipped_actions"] == 0
     assert np.array_equal(obs, obs_clipped)
+
+
+def test_random_actions_at_the_default_tolerances_track_a_tight_integration():
+    """The speed figures hold at full accuracy: random voltages jump every step, which
+    excites the electromechanical modes; the default tolerances must still follow a
+    tight integration of the same episode."""
+    actions = np.random.default_rng(3).uniform(-1.0, 1.0, (150, 3))
+    runs, clocks = [], []
+    for tolerances in ({}, {"rtol": 1e-10, "atol": 1e-12}):
+        env = ScaraEnv(control_mode="voltage", collision="penalty", **tolerances)
+        env.reset(seed=0)
+        states = []
+        for a in actions:
+            env.step(a)
+            states.append(env.sim.x[:9].copy())
+        runs.append(np.array(states))
+        clocks.append(env.sim.t)
+    default, tight = runs
+    assert clocks[0] == clocks[1]  # no episode end in either run
+    rtol, atol = 1e-5, 1e-6  # the defaults
+    error = np.max(np.abs(default - tight), axis=0)
+    assert np.all(error[:3] < 1e-6)  # joint positions [rad, rad, m]
+    # every state stays within a few tolerance scales of its own magnitude (measured <= 1.3)
+    assert np.all(error < 5 * (atol + rtol * np.max(np.abs(tight), axis=0)))
 
 
 @pytest.mark.parametrize("kwargs, error, words", [

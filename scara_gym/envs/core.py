@@ -36,7 +36,16 @@ R_DISTANCE = 9         # scaled target distance after the step
 R_STATUS = 10          # integrator status
 R_VOLTAGE = 11         # 3 armature voltages at the end of the step [V]
 R_TIP = 14             # tip x, y [m] after the step
-N_RESULT = 16
+R_CLIPPED = 16         # action components clipped to [-1, 1]
+N_RESULT = 17
+
+# per-environment constants (spec vector): one array instead of a dozen arguments,
+# because the dispatch cost of a compiled call grows with its argument count
+S_DT, S_RTOL, S_ATOL, S_TIME_LIMIT, S_OBSTACLE, S_PD = range(6)
+S_WEIGHTS = 6          # 5 reward weights, in REWARD_TERMS order
+S_CENTER = 11          # 3: "pd" set-point = center + half * action
+S_HALF = 14            # 3
+N_SPEC = 17
 
 N_OBS = 18
 
@@ -51,28 +60,25 @@ def scaled_distance(x, p):
 
 
 @njit(**JIT)
+def _put(out, i, value, low, high):
+    v = np.float32(value)
+    out[i] = min(max(v, low[i]), high[i])
+
+
+@njit(**JIT)
 def observe(x, p, t, time_limit, obstacle, critical, low, high, out):
     """The 18 observation values of the card, clipped to the space (float32 out)."""
     x_tip, y_tip, _ = tip_position(x[0], x[1], x[2], p)
-    values = np.empty(N_OBS)
     for i in range(9):
-        values[i] = x[i]
+        _put(out, i, x[i], low, high)
     for i in range(3):
-        values[9 + i] = p[TARGET + i] - x[i]
-    values[12] = x_tip
-    values[13] = y_tip
-    if obstacle:
-        values[14] = x_tip - p[X_OBS]
-        values[15] = x[2] - p[H_OBS]
-        values[16] = 1.0 if critical else 0.0
-    else:
-        values[14] = 0.0
-        values[15] = 0.0
-        values[16] = 0.0
-    values[17] = max(0.0, 1.0 - t / time_limit)
-    for i in range(N_OBS):
-        v = np.float32(values[i])
-        out[i] = min(max(v, low[i]), high[i])
+        _put(out, 9 + i, p[TARGET + i] - x[i], low, high)
+    _put(out, 12, x_tip, low, high)
+    _put(out, 13, y_tip, low, high)
+    _put(out, 14, x_tip - p[X_OBS] if obstacle else 0.0, low, high)
+    _put(out, 15, x[2] - p[H_OBS] if obstacle else 0.0, low, high)
+    _put(out, 16, 1.0 if (obstacle and critical) else 0.0, low, high)
+    _put(out, 17, max(0.0, 1.0 - t / time_limit), low, high)
 
 
 @njit(**JIT)
@@ -115,14 +121,14 @@ def control_step(x, t, dt, p, command, config, modes, rtol, atol, step_state, we
 
 
 @njit(**JIT)
-def start_episode(x, p, command, config, modes, step_state, counters, dt, time_limit, obstacle,
-                  low, high, obs, result):
+def start_episode(x, p, command, config, modes, step_state, counters, spec, bounds, obs, result):
     """Modes, step size, counters and the first observation of a new episode; returns d(q)."""
     initial_modes(x, p, command, config, modes)
     step_state[0] = 0.0
-    step_state[1] = dt
+    step_state[1] = spec[S_DT]
     counters[:] = 0
-    observe(x, p, 0.0, time_limit, obstacle, modes[M_CRITICAL] == 1, low, high, obs)
+    observe(x, p, 0.0, spec[S_TIME_LIMIT], spec[S_OBSTACLE] == 1.0, modes[M_CRITICAL] == 1,
+            bounds[0], bounds[1], obs)
     result[:] = 0.0
     result[R_TIP], result[R_TIP + 1], _ = tip_position(x[0], x[1], x[2], p)
     distance = scaled_distance(x, p)
@@ -130,16 +136,43 @@ def start_episode(x, p, command, config, modes, step_state, counters, dt, time_l
     return distance
 
 
+@njit(**JIT)
+def robot_step(action, x, t, p, command, config, modes, step_state, spec, bounds, distance_before,
+               ev_t, ev_code, ev_axis, counters, result, obs):
+    """One environment step of one robot: the action checked, clipped and mapped to the
+    command, control_step, then the observation. Returns the new time, or NaN (with
+    nothing changed) when the action is not finite.
+    """
+    for i in range(3):
+        if not math.isfinite(action[i]):
+            return math.nan
+    clipped = 0
+    for i in range(3):
+        a = float(action[i])
+        if a > 1.0 or a < -1.0:
+            clipped += 1
+            a = min(max(a, -1.0), 1.0)
+        command[i] = spec[S_CENTER + i] + spec[S_HALF + i] * a if spec[S_PD] == 1.0 else a
+    rec_t = np.empty(0)
+    rec_x = np.empty((0, x.shape[0]))
+    rec_u = np.empty((0, 3))
+    t_new = control_step(x, t, spec[S_DT], p, command, config, modes, spec[S_RTOL], spec[S_ATOL],
+                         step_state, spec[S_WEIGHTS:S_WEIGHTS + 5], distance_before, rec_t, rec_x,
+                         rec_u, ev_t, ev_code, ev_axis, counters, result)
+    result[R_CLIPPED] = clipped
+    observe(x, p, t_new, spec[S_TIME_LIMIT], spec[S_OBSTACLE] == 1.0, modes[M_CRITICAL] == 1,
+            bounds[0], bounds[1], obs)
+    return t_new
+
+
 @njit(cache=True, nogil=True, parallel=True)
-def control_step_batch(active, x, t, dt, p, command, config, modes, rtol, atol, step_state, weights,
-                       distance, rec_t, rec_x, rec_u, ev_t, ev_code, ev_axis, counters, result,
-                       time_limit, obstacle, low, high, obs):
-    """control_step and observe for every active robot, in parallel."""
+def robot_step_batch(active, actions, x, t, p, command, config, modes, step_state, spec, bounds,
+                     distance, ev_t, ev_code, ev_axis, counters, result, obs):
+    """robot_step for every active robot, in parallel (actions already checked finite)."""
     for i in prange(x.shape[0]):
         if not active[i]:
             continue
-        t[i] = control_step(x[i], t[i], dt, p[i], command[i], config, modes[i], rtol, atol,
-                            step_state[i], weights, distance[i], rec_t, rec_x, rec_u, ev_t[i],
-                            ev_code[i], ev_axis[i], counters[i], result[i])
+        t[i] = robot_step(actions[i], x[i], t[i], p[i], command[i], config, modes[i], step_state[i],
+                          spec, bounds, distance[i], ev_t[i], ev_code[i], ev_axis[i], counters[i],
+                          result[i], obs[i])
         distance[i] = result[i, R_DISTANCE]
-        observe(x[i], p[i], t[i], time_limit, obstacle, modes[i, M_CRITICAL] == 1, low, high, obs[i])

@@ -12,8 +12,9 @@ from gymnasium import spaces
 from scara_gym import layout as L
 from scara_gym.dynamics import tip_position
 from scara_gym.envs.core import (
-    N_OBS, N_RESULT, R_COLLISIONS, R_REACH_TIME, R_REACHED, R_REWARD, R_STATUS, R_TERMS, R_TIP, R_DISTANCE,
-    R_VOLTAGE, REWARD_TERMS, control_step, observe, start_episode,
+    N_OBS, N_RESULT, N_SPEC, R_CLIPPED, R_COLLISIONS, R_REACH_TIME, R_REACHED, R_REWARD, R_STATUS,
+    R_DISTANCE, R_TERMS, R_TIP, R_VOLTAGE, REWARD_TERMS, S_ATOL, S_CENTER, S_DT, S_HALF, S_OBSTACLE, S_PD,
+    S_RTOL, S_TIME_LIMIT, S_WEIGHTS, robot_step, start_episode,
 )
 from scara_gym.params import DEFAULT_PARAMS, ScaraParams
 from scara_gym.simulation import Simulator, check_state
@@ -81,7 +82,7 @@ def draw_target(rng: np.random.Generator, start: np.ndarray, params: ScaraParams
 def check_actions(action, shape: tuple[int, ...]) -> tuple[np.ndarray, int]:
     """Finite float64 actions of the given shape, clipped to [-1, 1], and how many were outside."""
     try:
-        a = np.asarray(action, dtype=np.float64)
+        a = np.ascontiguousarray(action, dtype=np.float64)
     except (TypeError, ValueError):
         raise ValueError(f"action must be numbers in [-1, 1] of shape {shape}, got {action!r}") from None
     if a.shape != shape:
@@ -291,11 +292,27 @@ class ScaraEnv(gym.Env):
         self.observation_space = spaces.Box(low, high, dtype=np.float32)
         self._setpoint_center = 0.5 * (SETPOINT_HIGH + SETPOINT_LOW)
         self._setpoint_half = 0.5 * (SETPOINT_HIGH - SETPOINT_LOW)
+        self._spec = self._compiled_spec()
+        self._bounds = np.stack([low, high])
         self._needs_reset = True
         self._renderer = None
         if render_mode == "human":
             from scara_gym.envs.rendering import require_display
             require_display()
+
+    def _compiled_spec(self) -> np.ndarray:
+        """The constants of the compiled step (layout S_* of scara_gym.envs.core)."""
+        spec = np.zeros(N_SPEC)
+        spec[S_DT] = self.control_dt
+        spec[S_RTOL] = self.sim.rtol
+        spec[S_ATOL] = self.sim.atol
+        spec[S_TIME_LIMIT] = self.time_limit
+        spec[S_OBSTACLE] = float(self.obstacle)
+        spec[S_PD] = float(self.control_mode == "pd")
+        spec[S_WEIGHTS:S_WEIGHTS + 5] = self._weights
+        spec[S_CENTER:S_CENTER + 3] = self._setpoint_center
+        spec[S_HALF:S_HALF + 3] = self._setpoint_half
+        return spec
 
     # -- spaces ------------------------------------------------------------------------
     observation_names = (
@@ -350,8 +367,7 @@ class ScaraEnv(gym.Env):
         sim.command = self._command
         self._distance = start_episode(
             sim.x, self._p, self._command, sim.config, sim.modes, sim.step_state, sim.counters,
-            self.control_dt, self.time_limit, self.obstacle, self.observation_space.low,
-            self.observation_space.high, self._obs, self._result)
+            self._spec, self._bounds, self._obs, self._result)
         self._reach_time = None
         self._collisions = 0
         self._needs_reset = False
@@ -380,53 +396,52 @@ class ScaraEnv(gym.Env):
     def step(self, action):
         if self._needs_reset:
             raise RuntimeError("the episode has ended (or never started): call reset() before step()")
-        a, clipped = self._check_action(action)
-        if self.control_mode == "pd":
-            self._command[:] = self._setpoint_center + self._setpoint_half * a
-        else:
-            self._command[:] = a
+        if not (type(action) is np.ndarray and action.shape == (3,) and action.dtype.char in "fd"
+                and action.flags.c_contiguous):
+            self._check_action(action)  # raises naming the problem
+            action = np.ascontiguousarray(action, dtype=np.float64)
         sim = self.sim
         result = self._result
-        sim.t = control_step(
-            sim.x, sim.t, self.control_dt, self._p, self._command, sim.config, sim.modes, sim.rtol,
-            sim.atol, sim.step_state, self._weights, self._distance, *self._no_record, sim.ev_t,
-            sim.ev_code, sim.ev_axis, sim.counters, result)
-        if result[R_STATUS] < 0:
-            raise RuntimeError(f"integration failed ({sim.status_name(int(result[R_STATUS]))}) "
-                               f"at t = {sim.t:.6f} s")
-        collisions = int(result[R_COLLISIONS])
-        reached = result[R_REACHED] == 1.0
+        t = robot_step(action, sim.x, sim.t, self._p, self._command, sim.config, sim.modes,
+                       sim.step_state, self._spec, self._bounds, self._distance, sim.ev_t,
+                       sim.ev_code, sim.ev_axis, sim.counters, result, self._obs)
+        if math.isnan(t):  # a non-finite action, rejected before anything changed
+            self._check_action(action)
+        sim.t = t
+        values = result.tolist()
+        if values[R_STATUS] < 0:
+            raise RuntimeError(f"integration failed ({sim.status_name(int(values[R_STATUS]))}) "
+                               f"at t = {t:.6f} s")
+        collisions = int(values[R_COLLISIONS])
+        reached = values[R_REACHED] == 1.0
         if reached:
-            self._reach_time = float(result[R_REACH_TIME])
+            self._reach_time = values[R_REACH_TIME]
         self._collisions += collisions
-        self._distance = float(result[R_DISTANCE])
-        terms = dict(zip(REWARD_TERMS, result[R_TERMS:R_TERMS + 5].tolist()))
-        reward = float(result[R_REWARD])
+        self._distance = values[R_DISTANCE]
         terminated = reached or (collisions > 0 and self.collision_mode == "terminate")
         self._needs_reset = terminated
         if self.render_mode is not None:
-            self._trace.append(self._tip())
+            self._trace.append((values[R_TIP], values[R_TIP + 1]))
+        modes = sim.modes
         info = {
-            "reward_terms": terms,
+            "reward_terms": dict(zip(REWARD_TERMS, values[R_TERMS:R_TERMS + 5])),
             "is_success": reached,
             "cost": 1.0 if collisions else 0.0,
             "collision": collisions > 0,
             "collisions": self._collisions,
-            "critical": sim.critical,
-            "time": sim.t,
-            "energy": float(sim.x[L.ENERGY]),
-            "current_limited": sim.modes[:3] != 0,
-            "voltage": result[R_VOLTAGE:R_VOLTAGE + 3].copy(),
-            "clipped_actions": clipped,
+            "critical": bool(modes[L.M_CRITICAL]),
+            "time": t,
+            "energy": sim.x[L.ENERGY].item(),
+            "current_limited": modes[:3] != 0,
+            "voltage": np.array(values[R_VOLTAGE:R_VOLTAGE + 3]),
+            "clipped_actions": int(values[R_CLIPPED]),
             "target": self.target.copy(),
         }
         if reached:
             info["reach_time"] = self._reach_time
         if self.render_mode == "human":
             self.render()
-        observe(sim.x, self._p, sim.t, self.time_limit, self.obstacle, sim.critical,
-                self.observation_space.low, self.observation_space.high, self._obs)
-        return self._obs.copy(), reward, terminated, False, info
+        return self._obs.copy(), values[R_REWARD], terminated, False, info
 
     # -- helpers -----------------------------------------------------------------------
     def _tip(self) -> tuple[float, float]:

@@ -22,7 +22,7 @@ from gymnasium.vector.utils import batch_space
 from scara_gym import layout as L
 from scara_gym.envs.core import (
     N_OBS, N_RESULT, R_COLLISIONS, R_REACH_TIME, R_REACHED, R_REWARD, R_STATUS, R_TERMS,
-    REWARD_TERMS, control_step_batch, start_episode,
+    REWARD_TERMS, robot_step_batch, start_episode,
 )
 from scara_gym.envs.scara_env import ScaraEnv, check_actions
 
@@ -71,10 +71,8 @@ class ScaraVectorEnv(VectorEnv):
         sim = template.sim
         self.control_dt = template.control_dt
         self._config = sim.config
-        self._rtol, self._atol = sim.rtol, sim.atol
-        self._weights = template._weights
-        self._low = template.observation_space.low
-        self._high = template.observation_space.high
+        self._spec = template._spec
+        self._bounds = template._bounds
         self.x = np.zeros((n, L.N_STATE))
         self.t = np.zeros(n)
         self.p = np.tile(template._p, (n, 1))
@@ -92,11 +90,8 @@ class ScaraVectorEnv(VectorEnv):
         self.steps = np.zeros(n, dtype=np.int64)
         self.collisions = np.zeros(n, dtype=np.int64)
         self.targets = np.zeros((n, 3))
-        self._no_record = (np.empty(0), np.empty((0, L.N_STATE)), np.empty((0, 3)))
         self._rngs: list[np.random.Generator] = [seeding.np_random(None)[0] for _ in range(n)]
         self._prev_done = np.zeros(n, dtype=bool)
-        self._setpoint_center = template._setpoint_center
-        self._setpoint_half = template._setpoint_half
 
     # -- episodes ----------------------------------------------------------------------
     def _reset_robot(self, i: int, options: dict | None = None) -> None:
@@ -112,8 +107,7 @@ class ScaraVectorEnv(VectorEnv):
         self.collisions[i] = 0
         self.distance[i] = start_episode(
             self.x[i], self.p[i], self.command[i], self._config, self.modes[i], self.step_state[i],
-            self.counters[i], self.control_dt, template.time_limit, template.obstacle, self._low,
-            self._high, self.obs[i], self.result[i])
+            self.counters[i], self._spec, self._bounds, self.obs[i], self.result[i])
 
     def reset(self, *, seed: int | list[int | None] | None = None, options: dict | None = None):
         if seed is None:
@@ -136,22 +130,15 @@ class ScaraVectorEnv(VectorEnv):
     # -- stepping ----------------------------------------------------------------------
     def step(self, actions):
         a, clipped = check_actions(actions, (self.num_envs, 3))
-        if self.template.control_mode == "pd":
-            command = self._setpoint_center + self._setpoint_half * a
-        else:
-            command = a
         resetting = self._prev_done.copy() if self.autoreset_mode == AutoresetMode.NEXT_STEP \
             else np.zeros(self.num_envs, dtype=bool)
         for i in np.flatnonzero(resetting):
             self._reset_robot(i)
         active = ~resetting
-        self.command[active] = command[active]
-        template = self.template
-        control_step_batch(
-            active, self.x, self.t, self.control_dt, self.p, self.command, self._config, self.modes,
-            self._rtol, self._atol, self.step_state, self._weights, self.distance, *self._no_record,
-            self.ev_t, self.ev_code, self.ev_axis, self.counters, self.result,
-            template.time_limit, template.obstacle, self._low, self._high, self.obs)
+        robot_step_batch(
+            active, a, self.x, self.t, self.p, self.command, self._config, self.modes,
+            self.step_state, self._spec, self._bounds, self.distance, self.ev_t, self.ev_code,
+            self.ev_axis, self.counters, self.result, self.obs)
         result = self.result
         failed = active & (result[:, R_STATUS] < 0)
         if failed.any():
@@ -161,7 +148,7 @@ class ScaraVectorEnv(VectorEnv):
         collided = active & (result[:, R_COLLISIONS] > 0)
         self.collisions[active] += result[active, R_COLLISIONS].astype(np.int64)
         self.steps[active] += 1
-        terminated = reached | (collided & (template.collision_mode == "terminate"))
+        terminated = reached | (collided & (self.template.collision_mode == "terminate"))
         truncated = active & (self.steps >= self.max_episode_steps)
         reward = np.where(active, result[:, R_REWARD], 0.0)
         info = {
