@@ -202,7 +202,7 @@ def reproduce(out: Path = Path("c11-results"), repeats: int = 5,
     """Run tasks a-c, print the seed's tables beside ours, write the figures; returns the report."""
     progress = Progress()
     print("scara-c11 reproduce: ARGESIM C11, tasks a-c (the first run compiles the model, "
-          "about 30 s; later runs load it from the cache)", file=sys.stderr)
+          "about 30-45 s; later runs load it from the cache)", file=sys.stderr)
     progress.start("compiling / loading the model")
     point_to_point(params, rtol=1e-3, atol=1e-6)
     progress.done()
