@@ -8,8 +8,9 @@ from scipy.integrate import solve_ivp
 
 from scara_gym import layout as L
 from scara_gym.dynamics import (
-    accelerations_explicit, accelerations_implicit, bias_vector, derivative, determinant,
-    free_current_rate, kinetic_energy, mass_matrix, pd_voltage, tip_position,
+    accelerations, accelerations_explicit, accelerations_implicit, bias_vector, derivative,
+    determinant, free_current_rate, joint_torque, kinetic_energy, mass_matrix, pd_voltage,
+    tip_position, voltage_limit,
 )
 from scara_gym.params import DEFAULT_PARAMS
 from scara_gym.tasks import sample_point_to_point
@@ -62,6 +63,34 @@ def test_pd_law_saturates_at_the_given_limit():
 def test_current_equation_uses_the_joint_rate_for_the_back_emf():
     rate = free_current_rate(50.0, 0.2, 1.0, P, 0)
     assert rate == pytest.approx((50.0 - 0.4 * 130 * 0.2 - 3.9 * 1.0) / 0.0073)
+
+
+@pytest.mark.parametrize("form", [L.FORM_EXPLICIT, L.FORM_IMPLICIT])
+@pytest.mark.parametrize("control", [L.CONTROL_PD, L.CONTROL_VOLTAGE])
+def test_derivative_is_the_composition_of_the_model_equations(form, control):
+    """derivative writes the voltage law, eq. 13 and T = kT u I out for speed; it must stay
+    the composition of pd_voltage, free_current_rate, joint_torque and accelerations."""
+    rng = np.random.default_rng(7)
+    config = np.zeros(L.N_CONFIG, dtype=np.int64)
+    config[L.C_FORM], config[L.C_CONTROL], config[L.C_WIDEN] = form, control, 1
+    for _ in range(50):
+        x = np.concatenate([rng.uniform(-3, 3, 2), rng.uniform(0, 0.4, 1), rng.uniform(-5, 5, 3),
+                            rng.uniform(-3, 3, 3), [0.0]])
+        command = rng.uniform(-1, 1, 3) if control == L.CONTROL_VOLTAGE else rng.uniform(-3, 3, 3)
+        modes = np.zeros(L.N_MODES, dtype=np.int64)
+        modes[:3] = rng.integers(-1, 2, 3)  # held and free currents
+        modes[L.M_CRITICAL] = rng.integers(0, 2)
+        out, volts = np.empty(10), np.empty(3)
+        derivative(x, P, command, config, modes, out, volts)
+        limits = [voltage_limit(P, i, modes[L.M_CRITICAL] == 1) for i in range(3)]
+        u = [pd_voltage(command[i], x[i], x[3 + i], P, i, limits[i]) if control == L.CONTROL_PD
+             else command[i] * limits[i] for i in range(3)]
+        torques = [joint_torque(x[6 + i], P, i) for i in range(3)]
+        expected = [x[3], x[4], x[5], *accelerations(x[1], x[3], x[4], *torques, P, form)]
+        expected += [0.0 if modes[i] else free_current_rate(u[i], x[3 + i], x[6 + i], P, i) for i in range(3)]
+        expected.append(sum(u[i] * x[6 + i] for i in range(3)))
+        assert np.array_equal(volts, u)
+        assert np.allclose(out, expected, rtol=1e-13, atol=0.0)
 
 
 def test_dec_rule_scales_only_the_kinematic_rows():
