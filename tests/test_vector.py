@@ -25,18 +25,20 @@ def test_each_sub_environment_is_the_single_environment(kwargs):
         actions = np.clip(actions * 0.1 + np.array([2 / np.pi, 2 / np.pi, 0.5]), -1, 1)
     venv = make_vec(n, **kwargs)
     obs, _ = venv.reset(seed=seed)
-    vec_obs, vec_rew, vec_term, vec_trunc = [obs], [], [], []
+    vec_obs, vec_rew, vec_term, vec_trunc, vec_clipped = [obs], [], [], [], []
     for k in range(horizon):
-        obs, rew, term, trunc, _ = venv.step(actions[k])
+        obs, rew, term, trunc, info = venv.step(actions[k])
         vec_obs.append(obs), vec_rew.append(rew), vec_term.append(term), vec_trunc.append(trunc)
+        vec_clipped.append(info["clipped_actions"])
     ended = 0
     for i in range(n):
         env = gym.make("Scara-C11-v0", **kwargs)
         obs, _ = env.reset(seed=seed + i)
         assert np.array_equal(obs, vec_obs[0][i])
         for k in range(horizon):
-            obs, rew, term, trunc, _ = env.step(actions[k, i])
+            obs, rew, term, trunc, info = env.step(actions[k, i])
             assert np.array_equal(obs, vec_obs[k + 1][i]), (i, k)
+            assert info["clipped_actions"] == vec_clipped[k][i]
             assert rew == vec_rew[k][i] and term == vec_term[k][i] and trunc == vec_trunc[k][i]
             if term or trunc:
                 ended += 1
@@ -44,6 +46,8 @@ def test_each_sub_environment_is_the_single_environment(kwargs):
                 assert vec_rew[k + 1][i] == 0.0 and not vec_term[k + 1][i]
                 break
     assert ended >= 1
+    if kwargs["control_mode"] == "voltage":  # actions beyond [-1, 1] were counted alike
+        assert sum(int(c.sum()) for c in vec_clipped) > 0
 
 
 def test_same_step_autoreset_returns_the_final_observation_in_info():

@@ -79,8 +79,9 @@ def draw_target(rng: np.random.Generator, start: np.ndarray, params: ScaraParams
                        "rules with these parameters")
 
 
-def check_actions(action, shape: tuple[int, ...]) -> tuple[np.ndarray, int]:
-    """Finite float64 actions of the given shape, clipped to [-1, 1], and how many were outside."""
+def check_actions(action, shape: tuple[int, ...]) -> np.ndarray:
+    """Finite float64 actions of the given shape (C-contiguous; not yet clipped: the compiled
+    step clips them to [-1, 1] and counts the clipped components)."""
     try:
         a = np.ascontiguousarray(action, dtype=np.float64)
     except (TypeError, ValueError):
@@ -89,11 +90,7 @@ def check_actions(action, shape: tuple[int, ...]) -> tuple[np.ndarray, int]:
         raise ValueError(f"action must have shape {shape}, got shape {a.shape}")
     if not np.isfinite(a).all():
         raise ValueError(f"action must be finite (allowed range [-1, 1]), got {a.tolist()}")
-    outside = (a > 1.0) | (a < -1.0)
-    count = outside.sum(axis=-1) if a.ndim > 1 else int(outside.sum())
-    if outside.any():
-        a = np.clip(a, -1.0, 1.0)
-    return a, count
+    return a
 
 
 class ScaraEnv(gym.Env):
@@ -349,9 +346,6 @@ class ScaraEnv(gym.Env):
                              f"q3 in [0, 0.4] m of the 'pd' mode, got {target.tolist()}")
         return target
 
-    def _check_action(self, action) -> tuple[np.ndarray, int]:
-        return check_actions(action, (3,))
-
     # -- API ---------------------------------------------------------------------------
     def reset(self, *, seed: int | None = None, options: dict | None = None):
         super().reset(seed=seed)
@@ -398,15 +392,14 @@ class ScaraEnv(gym.Env):
             raise RuntimeError("the episode has ended (or never started): call reset() before step()")
         if not (type(action) is np.ndarray and action.shape == (3,) and action.dtype.char in "fd"
                 and action.flags.c_contiguous):
-            self._check_action(action)  # raises naming the problem
-            action = np.ascontiguousarray(action, dtype=np.float64)
+            action = check_actions(action, (3,))  # converts, or raises naming the problem
         sim = self.sim
         result = self._result
         t = robot_step(action, sim.x, sim.t, self._p, self._command, sim.config, sim.modes,
                        sim.step_state, self._spec, self._bounds, self._distance, sim.ev_t,
                        sim.ev_code, sim.ev_axis, sim.counters, result, self._obs)
         if math.isnan(t):  # a non-finite action, rejected before anything changed
-            self._check_action(action)
+            check_actions(action, (3,))  # raises naming it
         sim.t = t
         values = result.tolist()
         if values[R_STATUS] < 0:

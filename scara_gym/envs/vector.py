@@ -21,7 +21,7 @@ from gymnasium.vector.utils import batch_space
 
 from scara_gym import layout as L
 from scara_gym.envs.core import (
-    N_OBS, N_RESULT, R_COLLISIONS, R_REACH_TIME, R_REACHED, R_REWARD, R_STATUS, R_TERMS,
+    N_OBS, N_RESULT, R_CLIPPED, R_COLLISIONS, R_REACH_TIME, R_REACHED, R_REWARD, R_STATUS, R_TERMS,
     REWARD_TERMS, robot_step_batch, start_episode,
 )
 from scara_gym.envs.scara_env import ScaraEnv, check_actions
@@ -129,7 +129,7 @@ class ScaraVectorEnv(VectorEnv):
 
     # -- stepping ----------------------------------------------------------------------
     def step(self, actions):
-        a, clipped = check_actions(actions, (self.num_envs, 3))
+        a = check_actions(actions, (self.num_envs, 3))
         resetting = self._prev_done.copy() if self.autoreset_mode == AutoresetMode.NEXT_STEP \
             else np.zeros(self.num_envs, dtype=bool)
         for i in np.flatnonzero(resetting):
@@ -159,7 +159,7 @@ class ScaraVectorEnv(VectorEnv):
             "critical": self.modes[:, L.M_CRITICAL] == 1,
             "time": self.t.copy(),
             "energy": self.x[:, L.ENERGY].copy(),
-            "clipped_actions": np.where(active, clipped, 0),
+            "clipped_actions": np.where(active, result[:, R_CLIPPED], 0).astype(np.int64),
             "reward_terms": {name: np.where(active, result[:, R_TERMS + k], 0.0)
                              for k, name in enumerate(REWARD_TERMS)},
             "reach_time": np.where(reached, result[:, R_REACH_TIME], np.nan),
