@@ -189,14 +189,20 @@ def rms_norm(values, scale):
 
 
 @njit(**JIT_INLINE)
+def dense_weight(s, theta):
+    """Weight of stage s in the dense output at theta: row s of RK_P as a polynomial."""
+    return theta * (RK_P[s, 0] + theta * (RK_P[s, 1] + theta * (RK_P[s, 2] + theta * RK_P[s, 3])))
+
+
+@njit(**JIT_INLINE)
 def dense_output(x, h, k, theta, out):
     """State at t + theta h from the step's stages (quartic in theta)."""
-    b0 = theta * (RK_P[0, 0] + theta * (RK_P[0, 1] + theta * (RK_P[0, 2] + theta * RK_P[0, 3])))
-    b2 = theta * (RK_P[2, 0] + theta * (RK_P[2, 1] + theta * (RK_P[2, 2] + theta * RK_P[2, 3])))
-    b3 = theta * (RK_P[3, 0] + theta * (RK_P[3, 1] + theta * (RK_P[3, 2] + theta * RK_P[3, 3])))
-    b4 = theta * (RK_P[4, 0] + theta * (RK_P[4, 1] + theta * (RK_P[4, 2] + theta * RK_P[4, 3])))
-    b5 = theta * (RK_P[5, 0] + theta * (RK_P[5, 1] + theta * (RK_P[5, 2] + theta * RK_P[5, 3])))
-    b6 = theta * (RK_P[6, 0] + theta * (RK_P[6, 1] + theta * (RK_P[6, 2] + theta * RK_P[6, 3])))
+    b0 = dense_weight(0, theta)
+    b2 = dense_weight(2, theta)
+    b3 = dense_weight(3, theta)
+    b4 = dense_weight(4, theta)
+    b5 = dense_weight(5, theta)
+    b6 = dense_weight(6, theta)
     for i in range(x.shape[0]):  # row 1 of RK_P is zero
         out[i] = x[i] + h * (k[0, i] * b0 + k[2, i] * b2 + k[3, i] * b3 + k[4, i] * b4
                              + k[5, i] * b5 + k[6, i] * b6)
