@@ -1,12 +1,14 @@
 """``python -m agents.evaluate``: run policies over the same fixed seeds, write tables and plots.
 
-    python -m agents.evaluate --policies pd dec-continue:0.06 dec-restart:0.06 ppo:models/ppo_pd \\
+    python -m agents.evaluate --policies pd dec-continue:0.06 dec-restart:0.06 ppo:ppo_pd \\
         --control-mode pd --episodes 100 --out results/pd
 
 Policy specs: ``pd``; ``dec-continue[:d]`` and ``dec-restart[:d]`` (the seed's heuristic
-with trigger distance d [m]); ``ppo:DIR`` (a model saved by agents.train). Writes
-``table.md``, ``table.csv``, ``tip_paths.png``, ``wall_and_height.png`` and, for PPO
-models with evaluation logs, ``learning_curves.png``.
+with trigger distance d [m]); ``ppo:NAME`` (a shipped model, e.g. ``ppo_pd``) or
+``ppo:DIR`` (a model saved by agents.train). Writes, under ``--out`` only: ``table.md``,
+``table.csv``, ``tip_paths.png``, ``wall_and_height.png``, ``NAME_results.json`` for each
+PPO model (the format of a shipped model's ``results.json``) and, for PPO models with
+evaluation logs, ``learning_curves.png``.
 """
 
 from __future__ import annotations
@@ -35,9 +37,9 @@ def make_policy(spec: str, env):
     if kind == "ppo":
         from agents.ppo import PPOPolicy
         if not arg:
-            raise ValueError("ppo policies are given as ppo:MODEL_DIR")
+            raise ValueError("ppo policies are given as ppo:NAME (shipped) or ppo:MODEL_DIR")
         return PPOPolicy(env, arg)
-    raise ValueError(f"unknown policy {spec!r}; use pd, dec-continue[:d], dec-restart[:d] or ppo:DIR")
+    raise ValueError(f"unknown policy {spec!r}; use pd, dec-continue[:d], dec-restart[:d] or ppo:NAME_OR_DIR")
 
 
 def evaluate(policies: list[str], control_mode: str = "pd", randomize_target: bool = False,
@@ -144,6 +146,7 @@ def write_outputs(rows, traces, out: Path, model_dirs: list[Path], params) -> li
 
 
 def main(argv: list[str] | None = None) -> list[dict]:
+    from agents.ppo import resolve_model
     from scara_gym import DEFAULT_PARAMS
 
     parser = argparse.ArgumentParser(prog="python -m agents.evaluate", description=__doc__.split("\n\n")[0])
@@ -157,11 +160,12 @@ def main(argv: list[str] | None = None) -> list[dict]:
     if args.episodes < 1:
         parser.error(f"--episodes must be >= 1, got {args.episodes}")
     rows, traces = evaluate(args.policies, args.control_mode, args.randomize_target, args.episodes, args.seed)
-    model_dirs = [Path(spec.split(":", 1)[1]) for spec in args.policies if spec.startswith("ppo:")]
+    model_dirs = [resolve_model(spec.split(":", 1)[1]) for spec in args.policies if spec.startswith("ppo:")]
     write_outputs(rows, traces, args.out, model_dirs, DEFAULT_PARAMS)
     for spec, row in zip(args.policies, rows):
-        if spec.startswith("ppo:"):  # the figures a shipped model is tested against
-            (Path(spec.split(":", 1)[1]) / "results.json").write_text(json.dumps({
+        if spec.startswith("ppo:"):  # the figures a model is tested against once shipped (its results.json)
+            name = resolve_model(spec.split(":", 1)[1]).name
+            (args.out / f"{name}_results.json").write_text(json.dumps({
                 "seed": args.seed, "episodes": args.episodes, "randomize_target": args.randomize_target,
                 "success_rate": row["success rate"], "collision_rate": row["collision rate"],
                 "mean_time_to_target": row["mean time to target [s]"],

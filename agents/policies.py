@@ -4,9 +4,9 @@ Both act through the environment's action interface only (observation in, action
 out), for either control mode:
 
 - "pd" mode: the action is the PD set-point; the environment's PD law makes voltages.
-- "voltage" mode: the policy evaluates the same C11 PD law (``scara_gym.dynamics``)
-  on the observation, once per control step, and commands U / limit, where limit is
-  the voltage permitted at that instant (widened while the observation says critical).
+- "voltage" mode: the policy evaluates the same C11 PD law on the observation, once per
+  control step, and commands U / limit, where limit is the voltage permitted at that
+  instant (widened while the observation says critical): ``env.pd_action``.
 
 How the seed's model change maps onto actions. The paper slows joints 1-2 by
 replacing q1' = v1, q2' = v2 with q' = dec v while the tip is critical, which freezes
@@ -28,28 +28,12 @@ from __future__ import annotations
 
 import numpy as np
 
-from scara_gym.envs import ScaraEnv
-from scara_gym.params import ScaraParams
+from scara_gym.envs import OBSERVATION_LAYOUT, ScaraEnv
 
-# observation indices (the card of ScaraEnv)
-Q, RATES, TARGET_ERROR = slice(0, 3), slice(3, 6), slice(9, 12)
-WALL_DISTANCE, HEIGHT_MARGIN, CRITICAL = 14, 15, 16
-
-
-class PDLaw:
-    """The C11 PD law on (batches of) observations, as fractions of the permitted voltage."""
-
-    def __init__(self, params: ScaraParams) -> None:
-        self.p_gain = np.array([a.p_gain for a in params.axes])
-        self.d_gain = np.array([a.d_gain for a in params.axes])
-        self.limit = params.voltage_limits
-        self.wide_limit = np.array(params.obstacle.wide_voltage_limits)
-
-    def __call__(self, obs: np.ndarray, setpoint: np.ndarray) -> np.ndarray:
-        obs = np.atleast_2d(obs)
-        limit = np.where(obs[:, CRITICAL:CRITICAL + 1] > 0.5, self.wide_limit, self.limit)
-        volts = self.p_gain * (setpoint - obs[:, Q]) - self.d_gain * obs[:, RATES]
-        return np.clip(volts / limit, -1.0, 1.0)
+Q, RATES, TARGET_ERROR = (OBSERVATION_LAYOUT[name] for name in ("q", "rate", "target_error"))
+CURRENTS = OBSERVATION_LAYOUT["current"]
+TIP_X, TIP_Y = OBSERVATION_LAYOUT["tip_x"], OBSERVATION_LAYOUT["tip_y"]
+WALL_DISTANCE, HEIGHT_MARGIN = OBSERVATION_LAYOUT["wall_distance"], OBSERVATION_LAYOUT["height_margin"]
 
 
 class Policy:
@@ -59,7 +43,6 @@ class Policy:
 
     def __init__(self, env: ScaraEnv) -> None:
         self.env = env.unwrapped if hasattr(env, "unwrapped") else env
-        self.pd_law = PDLaw(self.env.params)
 
     def reset(self) -> None:
         pass
@@ -71,7 +54,7 @@ class Policy:
         setpoint = self.setpoint(np.asarray(obs, dtype=float))
         if self.env.control_mode == "pd":
             return np.clip(self.env.setpoint_to_action(setpoint), -1.0, 1.0)
-        return self.pd_law(np.asarray(obs, dtype=float), setpoint)[0]
+        return self.env.pd_action(obs, setpoint)
 
 
 class PDPolicy(Policy):
@@ -124,21 +107,25 @@ class DecHeuristic(Policy):
         return target
 
 
+def _trace_row(obs) -> tuple:
+    return obs[TIP_X], obs[TIP_Y], obs[WALL_DISTANCE], obs[HEIGHT_MARGIN], obs[Q][2]
+
+
 def run_episode(env, policy, seed: int | None = None, options: dict | None = None, record: bool = False):
     """One episode; returns a summary dict (and the per-step trace if record)."""
     obs, _ = env.reset(seed=seed, options=options)
     policy.reset()
     unwrapped = env.unwrapped
     total, steps, peak = 0.0, 0, np.zeros(3)
-    trace = [(0.0, *obs[12:16], obs[2])] if record else None
+    trace = [(0.0, *_trace_row(obs))] if record else None
     info = {}
     while True:
         obs, reward, terminated, truncated, info = env.step(policy(obs))
         total += reward
         steps += 1
-        peak = np.maximum(peak, np.abs(obs[6:9]))
+        peak = np.maximum(peak, np.abs(obs[CURRENTS]))
         if record:
-            trace.append((info["time"], *obs[12:16], obs[2]))
+            trace.append((info["time"], *_trace_row(obs)))
         if terminated or truncated:
             break
     summary = {

@@ -9,7 +9,10 @@ back by up to residual_scale. In "pd" mode the set-point is the environment's ac
 "voltage" mode the agent evaluates the C11 PD law on the observation once per control
 step and commands the voltages (a learned controller with a PD prior).
 
-    python -m agents.train --control-mode pd --seed 0 --out models/ppo_pd
+    python -m agents.train --control-mode pd --seed 0            # writes runs/ppo_pd
+
+Shipped agents are package data (``agents/models/NAME``); ``resolve_model("ppo_pd")`` finds
+one by name from anywhere, and training never writes there.
 """
 
 from __future__ import annotations
@@ -22,11 +25,28 @@ from pathlib import Path
 import numpy as np
 import yaml
 
-from agents.policies import PDLaw
 from scara_gym import ENV_ID
-from scara_gym.envs import ScaraEnv
+from scara_gym.envs import OBSERVATION_LAYOUT, ScaraTask
 
 HYPERPARAMS = Path(__file__).with_name("hyperparams") / "ppo.yml"
+SHIPPED_MODELS = Path(__file__).with_name("models")
+Q, TARGET_ERROR = OBSERVATION_LAYOUT["q"], OBSERVATION_LAYOUT["target_error"]
+
+
+def shipped_models() -> list[str]:
+    """Names of the agents shipped with the package (agents/models/NAME)."""
+    return sorted(p.parent.name for p in SHIPPED_MODELS.glob("*/model.zip"))
+
+
+def resolve_model(name_or_path: str | Path) -> Path:
+    """A model folder: an existing path, else the name of a shipped model."""
+    path = Path(name_or_path)
+    if (path / "model.zip").exists():
+        return path
+    if (SHIPPED_MODELS / str(name_or_path) / "model.zip").exists():
+        return SHIPPED_MODELS / str(name_or_path)
+    raise FileNotFoundError(f"no PPO model at {str(name_or_path)!r}: give a folder with model.zip "
+                            f"or a shipped model name {shipped_models()}")
 
 
 def load_hyperparams(env_id: str = ENV_ID, control_mode: str = "pd", path: Path = HYPERPARAMS,
@@ -43,25 +63,22 @@ def load_hyperparams(env_id: str = ENV_ID, control_mode: str = "pd", path: Path 
 class ResidualSetpoint:
     """Maps agent outputs r to environment actions, for a batch of raw observations."""
 
-    def __init__(self, template: ScaraEnv, residual_scale, deadzone: float = 0.0) -> None:
+    def __init__(self, task: ScaraTask, residual_scale, deadzone: float = 0.0) -> None:
         if not 0.0 <= deadzone < 1.0:
             raise ValueError(f"residual_deadzone must be in [0, 1), got {deadzone!r}")
-        self.mode = template.control_mode
+        self.task = task
         self.scale = np.asarray(residual_scale, dtype=float)
         self.deadzone = float(deadzone)
-        self.center = template._setpoint_center
-        self.half = template._setpoint_half
-        self.pd_law = PDLaw(template.params)
 
     def __call__(self, obs: np.ndarray, r: np.ndarray) -> np.ndarray:
         obs = np.atleast_2d(np.asarray(obs, dtype=float))
         r = np.clip(np.atleast_2d(np.asarray(r, dtype=float)), -1.0, 1.0)
-        target = obs[:, 0:3] + obs[:, 9:12]
+        target = obs[:, Q] + obs[:, TARGET_ERROR]
         shaped = np.sign(r) * np.maximum(np.abs(r) - self.deadzone, 0.0) / (1.0 - self.deadzone)
         setpoint = target + self.scale * shaped
-        if self.mode == "pd":
-            return np.clip((setpoint - self.center) / self.half, -1.0, 1.0)
-        return self.pd_law(obs, setpoint)
+        if self.task.control_mode == "pd":
+            return np.clip((setpoint - self.task.setpoint_center) / self.task.setpoint_half, -1.0, 1.0)
+        return self.task.pd_action(obs, setpoint)
 
 
 def make_training_env(env_kwargs: dict, hyper: dict, seed: int):
@@ -87,15 +104,16 @@ def make_training_env(env_kwargs: dict, hyper: dict, seed: int):
             self.last_obs = obs
             return obs, rewards, dones, infos
 
-    venv = SB3VecEnv(num_envs=hyper["n_envs"], **env_kwargs)
+    # one numba thread: torch's threads take the cores between environment steps (see README)
+    venv = SB3VecEnv(num_envs=hyper["n_envs"], num_threads=hyper.get("env_threads", 1), **env_kwargs)
     venv.seed(seed)
-    mapping = ResidualSetpoint(venv.venv.template, hyper["residual_scale"], hyper.get("residual_deadzone", 0.0))
+    mapping = ResidualSetpoint(venv.venv.task, hyper["residual_scale"], hyper.get("residual_deadzone", 0.0))
     venv = Residual(venv, mapping)  # the adapter reports Monitor-style episode statistics
     return VecNormalize(venv, norm_obs=hyper["norm_obs"], norm_reward=hyper["norm_reward"], gamma=hyper["gamma"]), Residual, mapping
 
 
 def train(control_mode: str = "pd", randomize_target: bool = False, seed: int = 0,
-          total_timesteps: int | None = None, out: str | Path = "models/ppo_pd",
+          total_timesteps: int | None = None, out: str | Path = "runs/ppo_pd",
           hyperparams: dict | None = None, eval_freq: int = 25_000, eval_episodes: int = 10,
           progress_bar: bool = True, env_id: str = ENV_ID) -> Path:
     """Train PPO; writes model.zip, vecnormalize.pkl, config.json, checkpoints/, eval/ and tb/."""
@@ -108,7 +126,9 @@ def train(control_mode: str = "pd", randomize_target: bool = False, seed: int = 
     hyper = (load_hyperparams(env_id, control_mode, randomize_target=randomize_target)
              if hyperparams is None else dict(hyperparams))
     total_timesteps = int(total_timesteps or hyper["n_timesteps"])
-    out = Path(out)
+    out = Path(out).resolve()
+    if SHIPPED_MODELS.resolve() in (out, *out.parents):
+        raise ValueError(f"training writes under runs/ or --out, never into the shipped models ({out})")
     out.mkdir(parents=True, exist_ok=True)
     env_kwargs = {"control_mode": control_mode, "randomize_target": randomize_target,
                   **hyper.get("env_kwargs", {})}
@@ -159,12 +179,12 @@ def train(control_mode: str = "pd", randomize_target: bool = False, seed: int = 
 class PPOPolicy:
     """A saved PPO agent as an obs -> action policy for one environment (agents.policies API)."""
 
-    def __init__(self, env: ScaraEnv, model_dir: str | Path) -> None:
+    def __init__(self, env, model_dir: str | Path) -> None:
         import pickle
 
         from stable_baselines3 import PPO
 
-        model_dir = Path(model_dir)
+        model_dir = resolve_model(model_dir)
         self.env = env.unwrapped if hasattr(env, "unwrapped") else env
         config = json.loads((model_dir / "config.json").read_text())
         if config["env_kwargs"]["control_mode"] != self.env.control_mode:
@@ -176,7 +196,7 @@ class PPOPolicy:
         self.obs_rms, self.clip_obs, self.epsilon = normalizer.obs_rms, normalizer.clip_obs, normalizer.epsilon
         self.norm_obs = normalizer.norm_obs
         hyper = config["hyperparams"]
-        self.mapping = ResidualSetpoint(self.env, hyper["residual_scale"], hyper.get("residual_deadzone", 0.0))
+        self.mapping = ResidualSetpoint(self.env.task, hyper["residual_scale"], hyper.get("residual_deadzone", 0.0))
         self.name = f"ppo ({model_dir.name})"
 
     def reset(self) -> None:
@@ -201,9 +221,17 @@ def main(argv: list[str] | None = None) -> Path:
     parser.add_argument("--hyperparams", type=Path, default=HYPERPARAMS)
     parser.add_argument("--out", type=Path, default=None)
     parser.add_argument("--no-progress-bar", action="store_true")
+    for name in ("n_envs", "n_steps", "batch_size"):
+        parser.add_argument("--" + name.replace("_", "-"), type=int, default=None,
+                            help=f"override the YAML's {name} (e.g. for a quick trial)")
     args = parser.parse_args(argv)
     hyper = load_hyperparams(args.env_id, args.control_mode, args.hyperparams, args.randomize_target)
-    out = args.out or Path("models") / (f"ppo_{args.control_mode}" + ("_random" if args.randomize_target else ""))
+    for name in ("n_envs", "n_steps", "batch_size"):
+        if getattr(args, name) is not None:
+            if getattr(args, name) < 1:
+                parser.error(f"--{name.replace('_', '-')} must be >= 1, got {getattr(args, name)}")
+            hyper[name] = getattr(args, name)
+    out = args.out or Path("runs") / (f"ppo_{args.control_mode}" + ("_random" if args.randomize_target else ""))
     return train(args.control_mode, args.randomize_target, args.seed, args.total_timesteps, out, hyper,
                  progress_bar=not args.no_progress_bar, env_id=args.env_id)
 

@@ -1,9 +1,17 @@
-"""Compiled per-robot control step shared by the single and the vector environment.
+"""Compiled per-robot environment step, shared by the single and the vector environment.
 
 One call integrates one control step with located events, summarizes the events,
 computes the named reward terms and writes the observation. The single environment
 calls it once per step; the vector environment calls it for every robot inside one
 parallel loop, so both give bit-identical rollouts.
+
+Its interface is records (:mod:`scara_gym.model.records` and three of its own):
+
+- ``TASK``: the environment's constants (control step, time limit, reward weights,
+  set-point mapping, observation bounds), shared by all robots;
+- ``OUTCOME``: per robot, the result of its last step (weighted reward terms, events,
+  status) and its episode totals;
+- ``OBSERVATION``: the observation's fields, written into a flat float32 vector.
 """
 
 from __future__ import annotations
@@ -13,166 +21,203 @@ import math
 import numpy as np
 from numba import njit, prange
 
-from scara_gym.dynamics import JIT, tip_position, voltages
-from scara_gym.integrator import initial_modes, integrate
-from scara_gym.layout import (
-    ENERGY, EV_COLLISION, EV_TARGET_IN, H_OBS, K_EVENTS, M_CRITICAL, TARGET, X_OBS,
+from scara_gym.model.compilation import JIT
+from scara_gym.model.dynamics import pd_voltage, tip_position, voltage_limit, voltages
+from scara_gym.model.integrator import initial_modes, integrate
+from scara_gym.model.records import (
+    CURRENT, ENERGY, EV_COLLISION, EV_TARGET_IN, F8, I8, Q, RATE, STATUS_BAD_ACTION, field_offset,
 )
+
+F4 = np.float32
+REWARD_TERMS = ("progress", "time", "energy", "collision", "success")
+
+OBSERVATION = np.dtype([
+    ("q", F4, 3), ("rate", F4, 3), ("current", F4, 3), ("target_error", F4, 3),
+    ("tip_x", F4), ("tip_y", F4), ("wall_distance", F4), ("height_margin", F4),
+    ("critical", F4), ("time_left", F4),
+])
+N_OBS = OBSERVATION.itemsize // 4
+O_Q, O_RATE, O_CURRENT, O_TARGET_ERROR, O_TIP_X, O_TIP_Y, O_WALL, O_HEIGHT, O_CRITICAL, O_TIME_LEFT = (
+    field_offset(OBSERVATION, name) for name in OBSERVATION.names)
+
+TASK = np.dtype([
+    ("control_dt", F8),          # [s]
+    ("time_limit", F8),          # horizon of the time_left feature [s]
+    ("obstacle", np.bool_),      # the wall and its features
+    ("pd", np.bool_),            # "pd" control mode: the action is a set-point
+    *[(f"{term}_weight", F8) for term in REWARD_TERMS],
+    ("setpoint_center", F8, 3),  # "pd" set-point = center + half * action [rad, rad, m]
+    ("setpoint_half", F8, 3),
+    ("obs_low", F4, N_OBS), ("obs_high", F4, N_OBS),
+])
+
+OUTCOME = np.dtype([
+    ("reward", F8),
+    *[(term, F8) for term in REWARD_TERMS],  # the weighted terms; they sum to the reward
+    ("collisions", I8),          # collisions in this step
+    ("reached", np.bool_),       # the target was reached in this step
+    ("reach_time", F8),          # located instant [s] (NaN if not reached)
+    ("distance", F8),            # scaled target distance after the step
+    ("status", I8),              # integrator status (records.STATUS_*)
+    ("voltage", F8, 3),          # armature voltages at the end of the step [V]
+    ("tip", F8, 2),              # tip x, y after the step [m]
+    ("clipped", I8),             # action components clipped to [-1, 1]
+    ("episode_steps", I8), ("episode_collisions", I8),
+])
 
 # the progress term measures the target error in these units [rad, rad, m]
 DISTANCE_SCALE = np.array([1.0, 1.0, 0.1])
-
-# reward weight vector
-W_PROGRESS, W_TIME, W_ENERGY, W_COLLISION, W_SUCCESS = range(5)
-REWARD_TERMS = ("progress", "time", "energy", "collision", "success")
-
-# per-step result vector
-R_REWARD = 0
-R_TERMS = 1            # 5 weighted terms, in REWARD_TERMS order
-R_COLLISIONS = 6       # collisions in this step
-R_REACHED = 7          # 1.0 if the target was reached in this step
-R_REACH_TIME = 8       # located instant [s] (NaN if not reached)
-R_DISTANCE = 9         # scaled target distance after the step
-R_STATUS = 10          # integrator status
-R_VOLTAGE = 11         # 3 armature voltages at the end of the step [V]
-R_TIP = 14             # tip x, y [m] after the step
-R_CLIPPED = 16         # action components clipped to [-1, 1]
-N_RESULT = 17
-
-# per-environment constants (spec vector): one array instead of a dozen arguments,
-# because the dispatch cost of a compiled call grows with its argument count
-S_DT, S_RTOL, S_ATOL, S_TIME_LIMIT, S_OBSTACLE, S_PD = range(6)
-S_WEIGHTS = 6          # 5 reward weights, in REWARD_TERMS order
-S_CENTER = 11          # 3: "pd" set-point = center + half * action
-S_HALF = 14            # 3
-N_SPEC = 17
-
-N_OBS = 18
 
 
 @njit(**JIT)
 def scaled_distance(x, p):
     total = 0.0
     for i in range(3):
-        e = (x[i] - p[TARGET + i]) / DISTANCE_SCALE[i]
+        e = (x[Q + i] - p.target[i]) / DISTANCE_SCALE[i]
         total += e * e
     return math.sqrt(total)
 
 
 @njit(**JIT)
-def _put(out, i, value, low, high):
+def _put(out, i, value, task):
     v = np.float32(value)
-    out[i] = min(max(v, low[i]), high[i])
+    out[i] = min(max(v, task.obs_low[i]), task.obs_high[i])
 
 
 @njit(**JIT)
-def observe(x, p, t, time_limit, obstacle, critical, low, high, out):
-    """The 18 observation values of the card, clipped to the space (float32 out)."""
-    x_tip, y_tip, _ = tip_position(x[0], x[1], x[2], p)
-    for i in range(9):
-        _put(out, i, x[i], low, high)
+def observe(robot, p, task, out):
+    """The observation of the card, clipped to the space (float32 out)."""
+    x = robot.x
+    x_tip, y_tip, _ = tip_position(x[Q], x[Q + 1], x[Q + 2], p)
     for i in range(3):
-        _put(out, 9 + i, p[TARGET + i] - x[i], low, high)
-    _put(out, 12, x_tip, low, high)
-    _put(out, 13, y_tip, low, high)
-    _put(out, 14, x_tip - p[X_OBS] if obstacle else 0.0, low, high)
-    _put(out, 15, x[2] - p[H_OBS] if obstacle else 0.0, low, high)
-    _put(out, 16, 1.0 if (obstacle and critical) else 0.0, low, high)
-    _put(out, 17, max(0.0, 1.0 - t / time_limit), low, high)
+        _put(out, O_Q + i, x[Q + i], task)
+        _put(out, O_RATE + i, x[RATE + i], task)
+        _put(out, O_CURRENT + i, x[CURRENT + i], task)
+        _put(out, O_TARGET_ERROR + i, p.target[i] - x[Q + i], task)
+    _put(out, O_TIP_X, x_tip, task)
+    _put(out, O_TIP_Y, y_tip, task)
+    _put(out, O_WALL, x_tip - p.wall_x if task.obstacle else 0.0, task)
+    _put(out, O_HEIGHT, x[Q + 2] - p.wall_height if task.obstacle else 0.0, task)
+    _put(out, O_CRITICAL, 1.0 if (task.obstacle and robot.critical == 1) else 0.0, task)
+    _put(out, O_TIME_LEFT, max(0.0, 1.0 - robot.t / task.time_limit), task)
 
 
 @njit(**JIT)
-def control_step(x, t, dt, p, command, config, modes, rtol, atol, step_state, weights,
-                 distance_before, rec_t, rec_x, rec_u, ev_t, ev_code, ev_axis, counters, result):
-    """Advance one robot by one control step (or to its stop event); returns the new time."""
-    counters[K_EVENTS] = 0
+def control_step(robot, p, config, task, log, outcome):
+    """Advance one robot by one control step (or to its stop event) under its command."""
+    x = robot.x
+    t = robot.t
+    distance_before = outcome.distance
+    robot.n_events = 0
     energy_before = x[ENERGY]
-    status, t_new = integrate(x, t, t + dt, p, command, config, modes, rtol, atol, step_state,
-                              rec_t, rec_x, rec_u, ev_t, ev_code, ev_axis, counters)
+    status = integrate(robot, p, config, t + task.control_dt, log, None)
+    t_new = robot.t
     collisions = 0
     reach_time = math.nan
-    for i in range(min(counters[K_EVENTS], ev_t.shape[0])):
-        if ev_code[i] == EV_COLLISION:
+    for i in range(min(robot.n_events, log.shape[0])):
+        if log[i].code == EV_COLLISION:
             collisions += 1
-        elif ev_code[i] == EV_TARGET_IN and math.isnan(reach_time):
-            reach_time = ev_t[i]
+        elif log[i].code == EV_TARGET_IN and math.isnan(reach_time):
+            reach_time = log[i].time
     reached = not math.isnan(reach_time)
     distance = scaled_distance(x, p)
-    result[R_TERMS + W_PROGRESS] = weights[W_PROGRESS] * (distance_before - distance)
-    result[R_TERMS + W_TIME] = -weights[W_TIME] * (t_new - t)
-    result[R_TERMS + W_ENERGY] = -weights[W_ENERGY] * (x[ENERGY] - energy_before)
-    result[R_TERMS + W_COLLISION] = -weights[W_COLLISION] * collisions
-    result[R_TERMS + W_SUCCESS] = weights[W_SUCCESS] if reached else 0.0
-    total = 0.0
-    for k in range(5):
-        total += result[R_TERMS + k]
-    result[R_REWARD] = total
-    result[R_COLLISIONS] = collisions
-    result[R_REACHED] = 1.0 if reached else 0.0
-    result[R_REACH_TIME] = reach_time
-    result[R_DISTANCE] = distance
-    result[R_STATUS] = status
-    volts = np.empty(3)
-    voltages(x, p, command, config, modes, volts)
+    outcome.progress = task.progress_weight * (distance_before - distance)
+    outcome.time = -task.time_weight * (t_new - t)
+    outcome.energy = -task.energy_weight * (x[ENERGY] - energy_before)
+    outcome.collision = -task.collision_weight * collisions
+    outcome.success = task.success_weight if reached else 0.0
+    total = 0.0  # summed from 0.0 in REWARD_TERMS order, so that the sign of a zero sum is fixed
+    total += outcome.progress
+    total += outcome.time
+    total += outcome.energy
+    total += outcome.collision
+    total += outcome.success
+    outcome.reward = total
+    outcome.collisions = collisions
+    outcome.reached = reached
+    outcome.reach_time = reach_time
+    outcome.distance = distance
+    outcome.status = status
+    outcome.episode_steps += 1
+    outcome.episode_collisions += collisions
+    voltages(x, robot, p, config, outcome.voltage)
+    outcome.tip[0], outcome.tip[1], _ = tip_position(x[Q], x[Q + 1], x[Q + 2], p)
+    return status
+
+
+@njit(**JIT)
+def start_episode(robot, p, config, task, outcome, obs):
+    """Modes, step size, counters, outcome and the first observation of a new episode."""
+    initial_modes(robot, p, config)
+    robot.t = 0.0
+    robot.step_size = 0.0
+    robot.max_step = task.control_dt
+    robot.n_samples = robot.n_events = robot.n_rhs = robot.n_steps = robot.n_rejected = 0
+    robot.stop_event = 0
+    observe(robot, p, task, obs)
+    outcome.reward = outcome.progress = outcome.time = outcome.energy = 0.0
+    outcome.collision = outcome.success = outcome.reach_time = 0.0
+    outcome.collisions = outcome.clipped = outcome.status = 0
+    outcome.episode_steps = outcome.episode_collisions = 0
+    outcome.reached = False
     for i in range(3):
-        result[R_VOLTAGE + i] = volts[i]
-    result[R_TIP], result[R_TIP + 1], _ = tip_position(x[0], x[1], x[2], p)
-    return t_new
+        outcome.voltage[i] = 0.0
+    x = robot.x
+    outcome.tip[0], outcome.tip[1], _ = tip_position(x[Q], x[Q + 1], x[Q + 2], p)
+    outcome.distance = scaled_distance(x, p)
 
 
 @njit(**JIT)
-def start_episode(x, p, command, config, modes, step_state, counters, spec, bounds, obs, result):
-    """Modes, step size, counters and the first observation of a new episode; returns d(q)."""
-    initial_modes(x, p, command, config, modes)
-    step_state[0] = 0.0
-    step_state[1] = spec[S_DT]
-    counters[:] = 0
-    observe(x, p, 0.0, spec[S_TIME_LIMIT], spec[S_OBSTACLE] == 1.0, modes[M_CRITICAL] == 1,
-            bounds[0], bounds[1], obs)
-    result[:] = 0.0
-    result[R_TIP], result[R_TIP + 1], _ = tip_position(x[0], x[1], x[2], p)
-    distance = scaled_distance(x, p)
-    result[R_DISTANCE] = distance
-    return distance
-
-
-@njit(**JIT)
-def robot_step(action, x, t, p, command, config, modes, step_state, spec, bounds, distance_before,
-               ev_t, ev_code, ev_axis, counters, result, obs):
+def robot_step(action, robot, p, config, task, log, outcome, obs):
     """One environment step of one robot: the action checked, clipped and mapped to the
-    command, control_step, then the observation. Returns the new time, or NaN (with
-    nothing changed) when the action is not finite.
+    command, control_step, then the observation. Returns the status; STATUS_BAD_ACTION
+    (with nothing changed) when the action is not finite.
     """
     for i in range(3):
         if not math.isfinite(action[i]):
-            return math.nan
+            return STATUS_BAD_ACTION
     clipped = 0
     for i in range(3):
         a = float(action[i])
         if a > 1.0 or a < -1.0:
             clipped += 1
             a = min(max(a, -1.0), 1.0)
-        command[i] = spec[S_CENTER + i] + spec[S_HALF + i] * a if spec[S_PD] == 1.0 else a
-    rec_t = np.empty(0)
-    rec_x = np.empty((0, x.shape[0]))
-    rec_u = np.empty((0, 3))
-    t_new = control_step(x, t, spec[S_DT], p, command, config, modes, spec[S_RTOL], spec[S_ATOL],
-                         step_state, spec[S_WEIGHTS:S_WEIGHTS + 5], distance_before, rec_t, rec_x,
-                         rec_u, ev_t, ev_code, ev_axis, counters, result)
-    result[R_CLIPPED] = clipped
-    observe(x, p, t_new, spec[S_TIME_LIMIT], spec[S_OBSTACLE] == 1.0, modes[M_CRITICAL] == 1,
-            bounds[0], bounds[1], obs)
-    return t_new
+        robot.command[i] = task.setpoint_center[i] + task.setpoint_half[i] * a if task.pd else a
+    status = control_step(robot, p, config, task, log, outcome)
+    outcome.clipped = clipped
+    observe(robot, p, task, obs)
+    return status
+
+
+@njit(**JIT)
+def pd_actions(obs, setpoints, params, out):
+    """The "voltage"-mode actions that apply the C11 PD law (eq. 15-16, ``pd_voltage``) to
+    set-points on observations: U / limit, the limit widened where the observation says
+    critical. obs (n, N_OBS) and setpoints (n, 3) float64; out (n, 3)."""
+    p = params[0]
+    for i in range(obs.shape[0]):
+        widened = obs[i, O_CRITICAL] > 0.5
+        for axis in range(3):
+            limit = voltage_limit(p, axis, widened)
+            u = pd_voltage(setpoints[i, axis], obs[i, O_Q + axis], obs[i, O_RATE + axis], p, axis, limit)
+            out[i, axis] = u / limit
+    return out
+
+
+# entry points for Python callers: record arrays dispatch faster than records
+@njit(**JIT)
+def start_robot(i, robots, params, config, task, outcomes, obs):
+    start_episode(robots[i], params[i], config[0], task[0], outcomes[i], obs[i])
+
+
+@njit(**JIT)
+def step_robot(i, action, robots, params, config, task, log, outcomes, obs):
+    return robot_step(action, robots[i], params[i], config[0], task[0], log[i], outcomes[i], obs[i])
 
 
 @njit(cache=True, nogil=True, parallel=True)
-def robot_step_batch(active, actions, x, t, p, command, config, modes, step_state, spec, bounds,
-                     distance, ev_t, ev_code, ev_axis, counters, result, obs):
+def step_robots(active, actions, robots, params, config, task, log, outcomes, obs):
     """robot_step for every active robot, in parallel (actions already checked finite)."""
-    for i in prange(x.shape[0]):
-        if not active[i]:
-            continue
-        t[i] = robot_step(actions[i], x[i], t[i], p[i], command[i], config, modes[i], step_state[i],
-                          spec, bounds, distance[i], ev_t[i], ev_code[i], ev_axis[i], counters[i],
-                          result[i], obs[i])
-        distance[i] = result[i, R_DISTANCE]
+    for i in prange(robots.shape[0]):
+        if active[i]:
+            robot_step(actions[i], robots[i], params[i], config[0], task[0], log[i], outcomes[i], obs[i])

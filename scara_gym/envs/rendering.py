@@ -11,7 +11,8 @@ import sys
 
 import numpy as np
 
-from scara_gym.params import ScaraParams
+from scara_gym.model.dynamics import elbow_position, tip_position
+from scara_gym.model.params import ScaraParams
 
 
 def require_display() -> None:
@@ -37,6 +38,7 @@ class ScaraRenderer:
         del matplotlib
         self.human = human
         self.params = params
+        self._p = params.to_record()
         grid = self.figure.add_gridspec(1, 2, width_ratios=(5, 1))
         self.top = self.figure.add_subplot(grid[0])
         self.gauge = self.figure.add_subplot(grid[1])
@@ -58,14 +60,13 @@ class ScaraRenderer:
         self.label = self.top.text(0.02, 0.98, "", transform=self.top.transAxes, va="top", family="monospace")
 
     def draw(self, q, target, trace, obstacle: bool, critical: bool, time: float, collisions: int):
-        l1, l2 = self.params.arm.link1_length, self.params.arm.link2_length
-        elbow = (l1 * np.cos(q[0]), l1 * np.sin(q[0]))
-        tip = (elbow[0] + l2 * np.cos(q[0] + q[1]), elbow[1] + l2 * np.sin(q[0] + q[1]))
+        elbow = elbow_position(q[0], self._p)
+        tip = tip_position(q[0], q[1], q[2], self._p)
         self.arm.set_data([0.0, elbow[0], tip[0]], [0.0, elbow[1], tip[1]])
         trace = np.asarray(trace)
         self.trace.set_data(trace[:, 0], trace[:, 1])
-        tl1, tl2 = l1 * np.cos(target[0]), l1 * np.sin(target[0])
-        self.target.set_data([tl1 + l2 * np.cos(target[0] + target[1])], [tl2 + l2 * np.sin(target[0] + target[1])])
+        target_tip = tip_position(target[0], target[1], target[2], self._p)
+        self.target.set_data([target_tip[0]], [target_tip[1]])
         for artist in (self.wall, self.wall_band, self.wall_height):
             artist.set_visible(obstacle)
         self.wall.set_color("tab:red" if critical else "k")

@@ -14,24 +14,23 @@ adapter needs.
 
 from __future__ import annotations
 
+import numba
 import numpy as np
+from gymnasium import spaces
 from gymnasium.utils import seeding
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
-from scara_gym import layout as L
-from scara_gym.envs.core import (
-    N_OBS, N_RESULT, R_CLIPPED, R_COLLISIONS, R_REACH_TIME, R_REACHED, R_REWARD, R_STATUS, R_TERMS,
-    REWARD_TERMS, robot_step_batch, start_episode,
-)
-from scara_gym.envs.scara_env import ScaraEnv, check_actions
+from scara_gym.envs.task import ScaraTask, check_actions
 
 
 class ScaraVectorEnv(VectorEnv):
     """N copies of Scara-C11-v0 (same arguments as ScaraEnv), stepped in parallel.
 
     Extra arguments: num_envs, max_episode_steps (300: the registered time limit),
-    autoreset_mode ("NextStep" or "SameStep"). Rendering is not supported in the
+    autoreset_mode ("NextStep" or "SameStep"), num_threads (numba threads of the parallel
+    step; None: all, numba's NUMBA_NUM_THREADS, which defaults to the number of cores; give 1
+    where another library, e.g. torch in training, takes the cores between steps). Rendering is not supported in the
     vector environment (render_mode must be None). info holds arrays over the robots:
     is_success, cost, collision, collisions, critical, time, energy, clipped_actions,
     reward_terms (a dict of arrays) and reach_time (masked by ``_reach_time``).
@@ -40,7 +39,8 @@ class ScaraVectorEnv(VectorEnv):
     metadata = {"autoreset_mode": AutoresetMode.NEXT_STEP, "render_modes": []}
 
     def __init__(self, num_envs: int = 1, max_episode_steps: int = 300,
-                 autoreset_mode: str | AutoresetMode = AutoresetMode.NEXT_STEP, **kwargs) -> None:
+                 autoreset_mode: str | AutoresetMode = AutoresetMode.NEXT_STEP,
+                 num_threads: int | None = None, **kwargs) -> None:
         if isinstance(num_envs, bool) or not isinstance(num_envs, (int, np.integer)) or num_envs < 1:
             raise ValueError(f"num_envs must be an integer >= 1, got {num_envs!r}")
         if isinstance(max_episode_steps, bool) or not isinstance(max_episode_steps, (int, np.integer)) \
@@ -52,63 +52,38 @@ class ScaraVectorEnv(VectorEnv):
             raise ValueError(f"autoreset_mode must be 'NextStep' or 'SameStep', got {autoreset_mode!r}") from None
         if autoreset_mode == AutoresetMode.DISABLED:
             raise ValueError("autoreset_mode must be 'NextStep' or 'SameStep', got 'Disabled'")
+        available = numba.config.NUMBA_NUM_THREADS
+        if num_threads is None:
+            num_threads = available
+        if isinstance(num_threads, bool) or not isinstance(num_threads, (int, np.integer)) \
+                or not 1 <= num_threads <= available:
+            raise ValueError(f"num_threads must be an integer in [1, {available}] (numba's threads), "
+                             f"got {num_threads!r}")
+        self.num_threads = int(num_threads)
         if kwargs.get("render_mode") is not None:
             raise ValueError("the vector environment does not render; use render_mode=None "
                              "(render a single Scara-C11-v0 instead)")
-        self.template = ScaraEnv(**kwargs)
-        template = self.template
+        self.task = task = ScaraTask(num_robots=int(num_envs), **kwargs)
         self.num_envs = int(num_envs)
         self.max_episode_steps = int(max_episode_steps)
         self.metadata = {**type(self).metadata, "autoreset_mode": autoreset_mode}
         self.autoreset_mode = autoreset_mode
         self.render_mode = None
-        self.single_action_space = template.action_space
-        self.single_observation_space = template.observation_space
+        self.control_dt = task.control_dt
+        self.single_action_space = spaces.Box(-1.0, 1.0, shape=(3,), dtype=np.float32)
+        self.single_observation_space = spaces.Box(task.obs_low, task.obs_high, dtype=np.float32)
         self.action_space = batch_space(self.single_action_space, self.num_envs)
         self.observation_space = batch_space(self.single_observation_space, self.num_envs)
+        self._rngs: list[np.random.Generator] = [seeding.np_random(None)[0] for _ in range(self.num_envs)]
+        self._prev_done = np.zeros(self.num_envs, dtype=bool)
+        self._started = False
 
-        n = self.num_envs
-        sim = template.sim
-        self.control_dt = template.control_dt
-        self._config = sim.config
-        self._spec = template._spec
-        self._bounds = template._bounds
-        self.x = np.zeros((n, L.N_STATE))
-        self.t = np.zeros(n)
-        self.p = np.tile(template._p, (n, 1))
-        self.command = np.zeros((n, 3))
-        self.modes = np.zeros((n, L.N_MODES), dtype=np.int64)
-        self.step_state = np.zeros((n, 2))
-        self.counters = np.zeros((n, L.N_COUNTERS), dtype=np.int64)
-        events = sim.ev_t.shape[0]
-        self.ev_t = np.zeros((n, events))
-        self.ev_code = np.zeros((n, events), dtype=np.int64)
-        self.ev_axis = np.zeros((n, events), dtype=np.int64)
-        self.result = np.zeros((n, N_RESULT))
-        self.distance = np.zeros(n)
-        self.obs = np.zeros((n, N_OBS), dtype=np.float32)
-        self.steps = np.zeros(n, dtype=np.int64)
-        self.collisions = np.zeros(n, dtype=np.int64)
-        self.targets = np.zeros((n, 3))
-        self._rngs: list[np.random.Generator] = [seeding.np_random(None)[0] for _ in range(n)]
-        self._prev_done = np.zeros(n, dtype=bool)
+    @property
+    def targets(self) -> np.ndarray:
+        """The robots' targets q^ [rad, rad, m], shape (num_envs, 3) (a copy)."""
+        return self.task.robot_params["target"].copy()
 
     # -- episodes ----------------------------------------------------------------------
-    def _reset_robot(self, i: int, options: dict | None = None) -> None:
-        template = self.template
-        start, target = template.episode_start(self._rngs[i], options)
-        self.targets[i] = target
-        self.p[i, L.TARGET:L.TARGET + 3] = target
-        self.x[i] = 0.0
-        self.x[i, :3] = start
-        self.t[i] = 0.0
-        self.command[i] = target if template.control_mode == "pd" else 0.0
-        self.steps[i] = 0
-        self.collisions[i] = 0
-        self.distance[i] = start_episode(
-            self.x[i], self.p[i], self.command[i], self._config, self.modes[i], self.step_state[i],
-            self.counters[i], self._spec, self._bounds, self.obs[i], self.result[i])
-
     def reset(self, *, seed: int | list[int | None] | None = None, options: dict | None = None):
         if seed is None:
             seeds = [None] * self.num_envs
@@ -123,60 +98,37 @@ class ScaraVectorEnv(VectorEnv):
             if s is not None:
                 self._rngs[i] = seeding.np_random(s)[0]
         for i in range(self.num_envs):
-            self._reset_robot(i, options)
+            self.task.reset_robot(i, self._rngs[i], options)
         self._prev_done[:] = False
-        return self.obs.copy(), {"target": self.targets.copy()}
+        self._started = True
+        return self.task.obs.copy(), {"target": self.targets}
 
     # -- stepping ----------------------------------------------------------------------
     def step(self, actions):
+        if not self._started:
+            raise RuntimeError("call reset() before step()")
+        task = self.task
         a = check_actions(actions, (self.num_envs, 3))
         resetting = self._prev_done.copy() if self.autoreset_mode == AutoresetMode.NEXT_STEP \
             else np.zeros(self.num_envs, dtype=bool)
         for i in np.flatnonzero(resetting):
-            self._reset_robot(i)
-        active = ~resetting
-        robot_step_batch(
-            active, a, self.x, self.t, self.p, self.command, self._config, self.modes,
-            self.step_state, self._spec, self._bounds, self.distance, self.ev_t, self.ev_code,
-            self.ev_axis, self.counters, self.result, self.obs)
-        result = self.result
-        failed = active & (result[:, R_STATUS] < 0)
-        if failed.any():
-            i = int(np.flatnonzero(failed)[0])
-            raise RuntimeError(f"integration failed in sub-environment {i} at t = {self.t[i]:.6f} s")
-        reached = active & (result[:, R_REACHED] == 1.0)
-        collided = active & (result[:, R_COLLISIONS] > 0)
-        self.collisions[active] += result[active, R_COLLISIONS].astype(np.int64)
-        self.steps[active] += 1
-        terminated = reached | (collided & (self.template.collision_mode == "terminate"))
-        truncated = active & (self.steps >= self.max_episode_steps)
-        reward = np.where(active, result[:, R_REWARD], 0.0)
-        info = {
-            "is_success": reached,
-            "cost": collided.astype(np.float64),
-            "collision": collided,
-            "collisions": self.collisions.copy(),
-            "critical": self.modes[:, L.M_CRITICAL] == 1,
-            "time": self.t.copy(),
-            "energy": self.x[:, L.ENERGY].copy(),
-            "clipped_actions": np.where(active, result[:, R_CLIPPED], 0).astype(np.int64),
-            "reward_terms": {name: np.where(active, result[:, R_TERMS + k], 0.0)
-                             for k, name in enumerate(REWARD_TERMS)},
-            "reach_time": np.where(reached, result[:, R_REACH_TIME], np.nan),
-            "_reach_time": reached,
-        }
+            task.reset_robot(i, self._rngs[i])
+        numba.set_num_threads(self.num_threads)  # per calling thread; cheap
+        task.step_robots(~resetting, a)
+        outcomes = task.outcomes
+        terminated = task.terminated(outcomes)
+        truncated = outcomes["episode_steps"] >= self.max_episode_steps
+        reward = outcomes["reward"].copy()
+        info = task.info()
         done = terminated | truncated
-        obs = self.obs.copy()
+        obs = task.obs.copy()
         if self.autoreset_mode == AutoresetMode.SAME_STEP and done.any():
             info["final_obs"] = np.where(done[:, None], obs, 0.0).astype(np.float32)
             info["_final_obs"] = done
             info["final_info"] = {k: v for k, v in info.items() if not k.startswith("final")}
             info["_final_info"] = done
             for i in np.flatnonzero(done):
-                self._reset_robot(i)
-            obs = self.obs.copy()
+                task.reset_robot(i, self._rngs[i])
+            obs = task.obs.copy()
         self._prev_done = done
         return obs, reward, terminated, truncated, info
-
-    def close_extras(self, **kwargs) -> None:
-        self.template.close()

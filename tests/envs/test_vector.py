@@ -53,7 +53,7 @@ def test_each_sub_environment_is_the_single_environment(kwargs):
 def test_same_step_autoreset_returns_the_final_observation_in_info():
     venv = ScaraVectorEnv(num_envs=3, autoreset_mode="SameStep", control_mode="pd")
     venv.reset(seed=0)
-    action = np.tile(venv.template.setpoint_to_action([2.0, 2.0, 0.3]), (3, 1))
+    action = np.tile(venv.task.setpoint_to_action([2.0, 2.0, 0.3]), (3, 1))
     for _ in range(100):  # plain PD hits the wall at about 0.36 s
         obs, _, term, trunc, info = venv.step(action)
         if term.any():
@@ -79,19 +79,19 @@ def test_bad_vector_input():
         ScaraVectorEnv(num_envs=2, control_mode="torque")
 
 
-def test_ppo_learns_on_the_native_vector_env_through_the_adapter():
-    pytest.importorskip("stable_baselines3")
-    from stable_baselines3 import PPO
-    from scara_gym.sb3 import SB3VecEnv
+def test_thread_count_does_not_change_the_rollouts():
+    rng = np.random.default_rng(1)
+    actions = rng.uniform(-1, 1, (30, 6, 3))
+    runs = []
+    for threads in (1, None):
+        venv = ScaraVectorEnv(num_envs=6, control_mode="voltage", num_threads=threads)
+        obs, _ = venv.reset(seed=3)
+        runs.append([obs] + [venv.step(a)[0] for a in actions])
+    assert all(np.array_equal(a, b) for a, b in zip(*runs))
 
-    venv = SB3VecEnv(num_envs=8, control_mode="pd", max_episode_steps=50)
-    model = PPO("MlpPolicy", venv, n_steps=64, batch_size=128, n_epochs=2, seed=0, device="cpu")
-    before = [p.detach().clone() for p in model.policy.parameters()]
-    model.learn(total_timesteps=1024)
-    after = list(model.policy.parameters())
-    assert model.num_timesteps >= 1024
-    assert len(model.ep_info_buffer) > 0  # episodes end (50-step limit): Monitor-style stats arrive
-    assert any(not np.allclose(a.detach().numpy(), b.numpy()) for a, b in zip(after, before))
-    obs = venv.reset()
-    actions, _ = model.predict(obs, deterministic=True)
-    assert actions.shape == (8, 3) and np.all(np.abs(actions) <= 1)
+
+def test_thread_count_and_reset_are_checked():
+    with pytest.raises(ValueError, match=r"num_threads must be an integer in \[1, "):
+        ScaraVectorEnv(num_envs=2, num_threads=0)
+    with pytest.raises(RuntimeError, match="reset"):
+        ScaraVectorEnv(num_envs=2).step(np.zeros((2, 3)))

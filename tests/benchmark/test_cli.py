@@ -1,4 +1,4 @@
-from scara_gym.cli import main
+from scara_gym.benchmark.cli import main
 
 
 def test_reproduce_prints_the_tables_and_writes_the_figures(tmp_path, capsys):

@@ -3,8 +3,8 @@ import math
 import numpy as np
 import pytest
 
-from scara_gym import layout as L
-from scara_gym.params import DEFAULT_PARAMS, ArmParams, AxisParams, ObstacleParams, ScaraParams, TaskParams
+from scara_gym.model import records as R
+from scara_gym.model.params import DEFAULT_PARAMS, ArmParams, AxisParams, ObstacleParams, ScaraParams, TaskParams
 
 
 def test_derived_inertias_match_spec():
@@ -26,13 +26,17 @@ def test_default_axes_are_the_spec_table():
     assert DEFAULT_PARAMS.task.target == (2.0, 2.0, 0.3)
 
 
-def test_to_array_layout():
-    p = DEFAULT_PARAMS.to_array()
-    assert p.shape == (L.N_PARAMS,)
-    assert p[L.AXIS0 + 2 * L.AXIS_STRIDE + L.A_GEAR] == 1047
-    assert p[L.AXIS0 + 1 * L.AXIS_STRIDE + L.A_UWIDE] == 150
-    assert p[L.X_OBS] == 0.35 and p[L.H_OBS] == 0.15 and p[L.DEC] == 5e-5
-    assert list(p[L.TARGET:L.TARGET + 3]) == [2, 2, 0.3] and p[L.ACC] == 0.001
+def test_to_record_fills_every_field_by_name():
+    p = DEFAULT_PARAMS.to_record()
+    assert p.dtype == R.PARAMS
+    assert p["gear_ratio"][2] == 1047 and p["wide_voltage_limit"][1] == 150
+    assert p["wall_x"] == 0.35 and p["wall_height"] == 0.15 and p["dec"] == 5e-5
+    assert list(p["target"]) == [2, 2, 0.3] and p["accuracy"] == 0.001
+    assert p["theta1"] == pytest.approx(DEFAULT_PARAMS.arm.theta1)
+    assert p["vertical_mass"] == DEFAULT_PARAMS.vertical_mass
+    # no field left at its zero fill: every field of the record is set from the tree
+    for name in R.PARAMS.names:
+        assert np.all(p[name] != 0), name
 
 
 def test_params_are_frozen():
@@ -79,4 +83,4 @@ def test_replace_by_dotted_path():
         DEFAULT_PARAMS.replace({"axes.3.p_gain": 1.0})
     with pytest.raises(ValueError, match="AxisParams.voltage_limit"):
         DEFAULT_PARAMS.replace({"axes.0.voltage_limit": -100.0})
-    assert np.all(params.to_array() != DEFAULT_PARAMS.to_array()) is np.False_
+    assert params.to_record().tobytes() != DEFAULT_PARAMS.to_record().tobytes()

@@ -7,7 +7,10 @@ from pathlib import Path
 
 
 def main(argv: list[str] | None = None) -> int:
+    from scara_gym import __version__
+
     parser = argparse.ArgumentParser(prog="scara-c11", description="ARGESIM C11 SCARA robot benchmark")
+    parser.add_argument("--version", action="version", version=f"scara-c11 (scara_gym) {__version__}")
     commands = parser.add_subparsers(dest="command", required=True)
     rep = commands.add_parser("reproduce", help="the seed paper's tables beside ours, and its figures")
     rep.add_argument("--out", type=Path, default=Path("c11-results"), help="folder for the PNG figures")
@@ -18,10 +21,10 @@ def main(argv: list[str] | None = None) -> int:
     if args.command == "reproduce":
         if args.repeats < 1:
             parser.error(f"--repeats must be >= 1, got {args.repeats}")
-        from scara_gym.reproduce import reproduce
+        from scara_gym.benchmark.reproduce import reproduce
         reproduce(out=args.out, repeats=args.repeats)
     elif args.command == "bench":
-        from scara_gym.bench import main as bench_main
+        from scara_gym.benchmark.bench import main as bench_main
         bench_main(quick=args.quick)
     return 0
 

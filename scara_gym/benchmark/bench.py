@@ -19,8 +19,8 @@ import sys
 import tempfile
 import time
 
-from scara_gym.reference import scipy_point_to_point
-from scara_gym.tasks import point_to_point
+from scara_gym.benchmark.reference import scipy_point_to_point
+from scara_gym.benchmark.tasks import point_to_point
 
 
 def _best(run, repeats: int) -> tuple[float, float]:
@@ -146,7 +146,6 @@ def bench_tolerance(steps: int, tolerances=TOLERANCES) -> list[dict]:
     import numpy as np
 
     from scara_gym.envs.scara_env import ScaraEnv
-    from scara_gym.layout import K_RHS
 
     rng = np.random.default_rng(0)
     actions = rng.uniform(-1.0, 1.0, (steps, 3)).astype(np.float32)
@@ -158,11 +157,11 @@ def bench_tolerance(steps: int, tolerances=TOLERANCES) -> list[dict]:
         started = time.perf_counter()
         for action in actions:
             terminated = env.step(action)[2]
-            positions.append(env.sim.x[:3].copy())
+            positions.append(env.state[:3])
             if terminated:  # reached the target by chance: compare the common part
                 break
         elapsed = time.perf_counter() - started
-        return np.array(positions), len(positions) / elapsed, env.sim.counters[K_RHS] / len(positions)
+        return np.array(positions), len(positions) / elapsed, env.task.robots["n_rhs"][0] / len(positions)
 
     reference, _, _ = run(*TIGHT)  # also loads the compiled code before any timed run
     runs = {tol: run(*tol) for tol in tolerances}

@@ -6,16 +6,29 @@ import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
-from scara_gym import layout as L
-from scara_gym.dynamics import (
+from scara_gym.benchmark.tasks import sample_point_to_point
+from scara_gym.model import records as R
+from scara_gym.model.dynamics import (
     accelerations, accelerations_explicit, accelerations_implicit, bias_vector, derivative,
     determinant, free_current_rate, joint_torque, kinetic_energy, mass_matrix, pd_voltage,
     tip_position, voltage_limit,
 )
-from scara_gym.params import DEFAULT_PARAMS
-from scara_gym.tasks import sample_point_to_point
+from scara_gym.model.params import DEFAULT_PARAMS
 
-P = DEFAULT_PARAMS.to_array()
+P = DEFAULT_PARAMS.to_record()
+
+
+def make_config(**fields):
+    config = np.zeros(1, dtype=R.CONFIG)[0]
+    for name, value in fields.items():
+        config[name] = value
+    return config
+
+
+def make_robot(command, hold=(0, 0, 0), critical=0):
+    robot = np.zeros(1, dtype=R.ROBOT)[0]
+    robot["command"], robot["hold"], robot["critical"] = command, hold, critical
+    return robot
 
 
 def test_mass_matrix_is_symmetric_positive_definite_with_the_correct_determinant():
@@ -25,7 +38,7 @@ def test_mass_matrix_is_symmetric_positive_definite_with_the_correct_determinant
         assert np.all(np.linalg.eigvalsh(m) > 0)
         assert determinant(q2, P) == pytest.approx(np.linalg.det(m[:2, :2]), rel=1e-12)
         # the seed's eq. 12 (th1 th3 - th2^2 cos q2) is not the determinant
-    assert determinant(1.0, P) != pytest.approx(P[L.TH1] * P[L.TH3] - P[L.TH2] ** 2 * math.cos(1.0))
+    assert determinant(1.0, P) != pytest.approx(P["theta1"] * P["theta3"] - P["theta2"] ** 2 * math.cos(1.0))
 
 
 def test_explicit_and_implicit_accelerations_equal_a_numpy_solve():
@@ -65,29 +78,27 @@ def test_current_equation_uses_the_joint_rate_for_the_back_emf():
     assert rate == pytest.approx((50.0 - 0.4 * 130 * 0.2 - 3.9 * 1.0) / 0.0073)
 
 
-@pytest.mark.parametrize("form", [L.FORM_EXPLICIT, L.FORM_IMPLICIT])
-@pytest.mark.parametrize("control", [L.CONTROL_PD, L.CONTROL_VOLTAGE])
+@pytest.mark.parametrize("form", [R.FORM_EXPLICIT, R.FORM_IMPLICIT])
+@pytest.mark.parametrize("control", [R.CONTROL_PD, R.CONTROL_VOLTAGE])
 def test_derivative_is_the_composition_of_the_model_equations(form, control):
     """derivative writes the voltage law, eq. 13 and T = kT u I out for speed; it must stay
     the composition of pd_voltage, free_current_rate, joint_torque and accelerations."""
     rng = np.random.default_rng(7)
-    config = np.zeros(L.N_CONFIG, dtype=np.int64)
-    config[L.C_FORM], config[L.C_CONTROL], config[L.C_WIDEN] = form, control, 1
+    config = make_config(form=form, control=control, widen=True)
     for _ in range(50):
         x = np.concatenate([rng.uniform(-3, 3, 2), rng.uniform(0, 0.4, 1), rng.uniform(-5, 5, 3),
                             rng.uniform(-3, 3, 3), [0.0]])
-        command = rng.uniform(-1, 1, 3) if control == L.CONTROL_VOLTAGE else rng.uniform(-3, 3, 3)
-        modes = np.zeros(L.N_MODES, dtype=np.int64)
-        modes[:3] = rng.integers(-1, 2, 3)  # held and free currents
-        modes[L.M_CRITICAL] = rng.integers(0, 2)
+        command = rng.uniform(-1, 1, 3) if control == R.CONTROL_VOLTAGE else rng.uniform(-3, 3, 3)
+        hold = rng.integers(-1, 2, 3)  # held and free currents
+        robot = make_robot(command, hold, critical=rng.integers(0, 2))
         out, volts = np.empty(10), np.empty(3)
-        derivative(x, P, command, config, modes, out, volts)
-        limits = [voltage_limit(P, i, modes[L.M_CRITICAL] == 1) for i in range(3)]
-        u = [pd_voltage(command[i], x[i], x[3 + i], P, i, limits[i]) if control == L.CONTROL_PD
+        derivative(x, robot, P, config, out, volts)
+        limits = [voltage_limit(P, i, robot["critical"] == 1) for i in range(3)]
+        u = [pd_voltage(command[i], x[i], x[3 + i], P, i, limits[i]) if control == R.CONTROL_PD
              else command[i] * limits[i] for i in range(3)]
         torques = [joint_torque(x[6 + i], P, i) for i in range(3)]
         expected = [x[3], x[4], x[5], *accelerations(x[1], x[3], x[4], *torques, P, form)]
-        expected += [0.0 if modes[i] else free_current_rate(u[i], x[3 + i], x[6 + i], P, i) for i in range(3)]
+        expected += [0.0 if hold[i] else free_current_rate(u[i], x[3 + i], x[6 + i], P, i) for i in range(3)]
         expected.append(sum(u[i] * x[6 + i] for i in range(3)))
         assert np.array_equal(volts, u)
         assert np.allclose(out, expected, rtol=1e-13, atol=0.0)
@@ -95,14 +106,13 @@ def test_derivative_is_the_composition_of_the_model_equations(form, control):
 
 def test_dec_rule_scales_only_the_kinematic_rows():
     x = np.array([0.3, 0.5, 0.05, 2.0, -3.0, 0.1, 1.0, -0.5, 0.2, 0.0])
-    config = np.zeros(L.N_CONFIG, dtype=np.int64)
-    config[L.C_DEC] = 1
-    modes = np.zeros(L.N_MODES, dtype=np.int64)
+    config = make_config(decelerate=True)
+    robot = make_robot([2.0, 2.0, 0.3])
     plain, volts = np.empty(10), np.empty(3)
-    derivative(x, P, np.array([2.0, 2.0, 0.3]), config, modes, plain, volts)
-    modes[L.M_CRITICAL] = 1
+    derivative(x, robot, P, config, plain, volts)
+    robot["critical"] = 1
     slowed = np.empty(10)
-    derivative(x, P, np.array([2.0, 2.0, 0.3]), config, modes, slowed, volts)
+    derivative(x, robot, P, config, slowed, volts)
     assert slowed[0] == pytest.approx(5e-5 * 2.0) and slowed[1] == pytest.approx(5e-5 * -3.0)
     assert np.array_equal(slowed[2:], plain[2:])
 
@@ -120,7 +130,7 @@ def test_gravity_offset_of_axis_3_under_pure_p_action():
 @pytest.mark.parametrize("accelerations", [accelerations_explicit, accelerations_implicit])
 def test_free_motion_conserves_the_kinetic_energy_of_axes_1_and_2(accelerations):
     def rhs(_t, y):
-        a1, a2, _ = accelerations(y[1], y[2], y[3], 0.0, 0.0, P[L.M3L] * P[L.GRAVITY], P)
+        a1, a2, _ = accelerations(y[1], y[2], y[3], 0.0, 0.0, P["load_mass"] * P["gravity"], P)
         return [y[2], y[3], a1, a2]
 
     y0 = [0.0, 0.4, 3.0, -5.0]
@@ -135,7 +145,7 @@ def test_free_motion_conserves_the_kinetic_energy_of_axes_1_and_2(accelerations)
 
 def test_electrical_energy_balances_losses_and_stored_energy():
     """Below the current limits: int U.I dt = int R I^2 dt + 1/2 L I^2 + 1/2 q'^T M q' + m3L g q3."""
-    from scara_gym.simulation import Simulator, start_state
+    from scara_gym.model.simulator import Simulator, start_state
 
     sim = Simulator(DEFAULT_PARAMS, stop=(), rtol=1e-11, atol=1e-13, max_step=1e-3)
     sim.reset(start_state(DEFAULT_PARAMS), command=[0.005, -0.004, 0.002])

@@ -3,8 +3,8 @@
 import numpy as np
 import pytest
 
-from scara_gym.params import DEFAULT_PARAMS
-from scara_gym.tasks import obstacle_avoidance
+from scara_gym.benchmark.tasks import obstacle_avoidance
+from scara_gym.model.params import DEFAULT_PARAMS
 
 MS = 5e-4  # the spec's reference is given to 0.5 ms
 

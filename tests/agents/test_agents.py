@@ -10,7 +10,7 @@ import pytest
 import scara_gym  # noqa: F401
 from agents.policies import DecHeuristic, PDPolicy, run_episode, smallest_safe_distance
 
-MODELS = Path(__file__).resolve().parents[1] / "models"
+MODELS = Path(__file__).resolve().parents[2] / "agents" / "models"
 
 
 @pytest.mark.parametrize("control_mode", ["pd", "voltage"])

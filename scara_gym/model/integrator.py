@@ -12,6 +12,12 @@ a kink (continuous right-hand side) and is left to step-size control.
 Error control is scipy's: RMS norm of the embedded error over
 ``atol + rtol * max(|y_old|, |y_new|)``, so "the same tolerances" means the same
 thing here and in ``solve_ivp``.
+
+Interfaces are the records of :mod:`scara_gym.model.records`: ``integrate(robot, p,
+config, t_end, log, samples)`` advances one ``ROBOT`` record under a ``PARAMS`` and a
+``CONFIG`` record, writes events to ``log`` (an ``EVENT`` array) and, unless ``samples``
+is None, samples to a ``SAMPLE`` array. Its only allocation is one fixed-size work
+buffer per call (a local array on a GPU).
 """
 
 from __future__ import annotations
@@ -21,18 +27,17 @@ import math
 import numpy as np
 from numba import njit
 
-from scara_gym.dynamics import (
-    JIT, JIT_INLINE, current_limit, derivative, free_current_rate, is_critical_state, is_inside_target,
-    target_error, tip_position, voltages,
+from scara_gym.model.compilation import JIT, JIT_INLINE
+from scara_gym.model.dynamics import (
+    derivative, free_current_rate, is_critical_state, is_inside_target, target_error, tip_position,
+    voltages,
 )
-from scara_gym.layout import (
-    ACC, C_CRITICAL, C_MAX_STEPS, C_STOP, C_WALL, CRIT_FORCED, CRIT_SWITCH, D_CRIT,
-    E_CRITICAL, E_HEIGHT, E_SIDE, E_TARGET, EV_ABOVE, EV_BELOW, EV_COLLISION,
-    EV_CRITICAL_OFF, EV_CRITICAL_ON, EV_LIMIT_OFF, EV_LIMIT_ON, EV_TARGET_IN, EV_TARGET_OUT,
-    EV_WALL_CROSS, H_OBS, K_EVENTS, K_LAST_EVENT, K_RECORDS, K_REJECTED, K_RHS, K_STEPS,
-    M_ABOVE, M_CRITICAL, M_INSIDE, M_SIDE, N_EVENTS, N_STATE, STATUS_END,
-    STATUS_MAX_STEPS, STATUS_NOT_FINITE, STATUS_STEP_UNDERFLOW, STATUS_STOPPED,
-    STOP_ABOVE, STOP_COLLISION, STOP_CRITICAL, STOP_TARGET, X_OBS,
+from scara_gym.model.records import (
+    CRIT_FORCED, CRIT_SWITCH, CURRENT, E_CRITICAL, E_HEIGHT, E_SIDE, E_TARGET, EV_ABOVE, EV_BELOW,
+    EV_COLLISION, EV_CRITICAL_OFF, EV_CRITICAL_ON, EV_LIMIT_OFF, EV_LIMIT_ON, EV_TARGET_IN,
+    EV_TARGET_OUT, EV_WALL_CROSS, N_EVENTS, N_STATE, Q, RATE, STATUS_END, STATUS_MAX_STEPS,
+    STATUS_NOT_FINITE, STATUS_STEP_UNDERFLOW, STATUS_STOPPED, STOP_ABOVE, STOP_COLLISION,
+    STOP_CRITICAL, STOP_TARGET,
 )
 
 # Dormand-Prince 5(4) tableau and Shampine's dense output, as in scipy.integrate.RK45
@@ -69,113 +74,115 @@ EVENT_TIME_TOL = 1e-12  # [s] width of the bracket an event is located to
 
 
 @njit(**JIT_INLINE)
-def event_values(x, p, command, config, modes, volts, g):
-    """g_k(x) for every mode switch, positive while the current mode holds."""
-    voltages(x, p, command, config, modes, volts)
+def event_values(x, robot, p, config, volts, g):
+    """g_k(x) for every mode switch, positive while the robot's current mode holds."""
+    voltages(x, robot, p, config, volts)
     for axis in range(3):
-        imax = current_limit(p, axis)
-        if modes[axis] == 0:
-            g[axis] = imax - abs(x[6 + axis])
+        imax = p.current_limit[axis]
+        hold = robot.hold[axis]
+        if hold == 0:
+            g[axis] = imax - abs(x[CURRENT + axis])
         else:  # held: stays held while the free dynamics push outward
-            g[axis] = modes[axis] * free_current_rate(volts[axis], x[3 + axis], modes[axis] * imax, p, axis)
-    x_tip, _, _ = tip_position(x[0], x[1], x[2], p)
-    if config[C_CRITICAL] == CRIT_SWITCH:
-        measure = min(p[D_CRIT] - abs(x_tip - p[X_OBS]), p[H_OBS] - x[2])  # > 0 iff critical
-        g[E_CRITICAL] = measure if modes[M_CRITICAL] == 1 else -measure
+            g[axis] = hold * free_current_rate(volts[axis], x[RATE + axis], hold * imax, p, axis)
+    x_tip, _, _ = tip_position(x[Q], x[Q + 1], x[Q + 2], p)
+    if config.critical_rule == CRIT_SWITCH:
+        measure = min(p.critical_distance - abs(x_tip - p.wall_x), p.wall_height - x[Q + 2])  # > 0 iff critical
+        g[E_CRITICAL] = measure if robot.critical == 1 else -measure
     else:
         g[E_CRITICAL] = 1.0
-    g[E_SIDE] = modes[M_SIDE] * (x_tip - p[X_OBS]) if config[C_WALL] == 1 else 1.0
-    g[E_HEIGHT] = (x[2] - p[H_OBS]) if modes[M_ABOVE] == 1 else (p[H_OBS] - x[2])
+    g[E_SIDE] = robot.side * (x_tip - p.wall_x) if config.wall else 1.0
+    g[E_HEIGHT] = (x[Q + 2] - p.wall_height) if robot.above == 1 else (p.wall_height - x[Q + 2])
     error = target_error(x, p)
-    g[E_TARGET] = (p[ACC] - error) if modes[M_INSIDE] == 1 else (error - p[ACC])
+    g[E_TARGET] = (p.accuracy - error) if robot.inside == 1 else (error - p.accuracy)
     return g
 
 
 @njit(**JIT)
-def log_event(t, code, axis, ev_t, ev_code, ev_axis, counters):
-    n = counters[K_EVENTS]
-    if n < ev_t.shape[0]:
-        ev_t[n] = t
-        ev_code[n] = code
-        ev_axis[n] = axis
-    counters[K_EVENTS] = n + 1
+def log_event(t, code, axis, robot, log):
+    n = robot.n_events
+    if n < log.shape[0]:
+        log[n].time = t
+        log[n].code = code
+        log[n].axis = axis
+    robot.n_events = n + 1
 
 
 @njit(**JIT)
-def initial_modes(x, p, command, config, modes):
-    """Discrete modes implied by a state at the start of a simulation."""
+def initial_modes(robot, p, config):
+    """Discrete modes implied by the robot's state at the start of a simulation."""
+    x = robot.x
     for axis in range(3):
-        modes[axis] = 0
-    if config[C_CRITICAL] == CRIT_FORCED:
-        modes[M_CRITICAL] = 1
-    elif config[C_CRITICAL] == CRIT_SWITCH:
-        modes[M_CRITICAL] = 1 if is_critical_state(x, p) else 0
+        robot.hold[axis] = 0
+    if config.critical_rule == CRIT_FORCED:
+        robot.critical = 1
+    elif config.critical_rule == CRIT_SWITCH:
+        robot.critical = 1 if is_critical_state(x, p) else 0
     else:
-        modes[M_CRITICAL] = 0
-    x_tip, _, _ = tip_position(x[0], x[1], x[2], p)
-    modes[M_SIDE] = 1 if x_tip >= p[X_OBS] else -1
-    modes[M_ABOVE] = 1 if x[2] >= p[H_OBS] else 0
-    modes[M_INSIDE] = 1 if is_inside_target(x, p) else 0
+        robot.critical = 0
+    x_tip, _, _ = tip_position(x[Q], x[Q + 1], x[Q + 2], p)
+    robot.side = 1 if x_tip >= p.wall_x else -1
+    robot.above = 1 if x[Q + 2] >= p.wall_height else 0
+    robot.inside = 1 if is_inside_target(x, p) else 0
 
 
 @njit(**JIT)
-def settle_holds(t, x, p, command, config, modes, volts, ev_t, ev_code, ev_axis, counters):
+def settle_holds(t, x, robot, p, config, volts, log):
     """Hold a current at its limit while it pushes outward; release it when it no longer does.
 
     Needed at the start of every call (a new command can reverse the push) and after events.
     """
-    voltages(x, p, command, config, modes, volts)
+    voltages(x, robot, p, config, volts)
     for axis in range(3):
-        imax = current_limit(p, axis)
-        current = x[6 + axis]
-        if modes[axis] == 0 and abs(current) > imax:
+        imax = p.current_limit[axis]
+        current = x[CURRENT + axis]
+        if robot.hold[axis] == 0 and abs(current) > imax:
             sign = 1 if current > 0 else -1
-            if sign * free_current_rate(volts[axis], x[3 + axis], sign * imax, p, axis) >= 0.0:
-                modes[axis] = sign
-                log_event(t, EV_LIMIT_ON, axis, ev_t, ev_code, ev_axis, counters)
-            x[6 + axis] = sign * imax
-        elif modes[axis] != 0:
-            x[6 + axis] = modes[axis] * imax
-            if modes[axis] * free_current_rate(volts[axis], x[3 + axis], x[6 + axis], p, axis) < 0.0:
-                modes[axis] = 0
-                log_event(t, EV_LIMIT_OFF, axis, ev_t, ev_code, ev_axis, counters)
+            if sign * free_current_rate(volts[axis], x[RATE + axis], sign * imax, p, axis) >= 0.0:
+                robot.hold[axis] = sign
+                log_event(t, EV_LIMIT_ON, axis, robot, log)
+            x[CURRENT + axis] = sign * imax
+        elif robot.hold[axis] != 0:
+            x[CURRENT + axis] = robot.hold[axis] * imax
+            if robot.hold[axis] * free_current_rate(volts[axis], x[RATE + axis], x[CURRENT + axis], p, axis) < 0.0:
+                robot.hold[axis] = 0
+                log_event(t, EV_LIMIT_OFF, axis, robot, log)
 
 
 @njit(**JIT)
-def handle_event(k, t, x, p, config, modes, ev_t, ev_code, ev_axis, counters):
+def handle_event(k, t, x, robot, p, config, log):
     """Switch the mode of event k at state x; True when the configuration says stop here."""
-    stop_mask = config[C_STOP]
+    stop_mask = config.stops
     stop = False
     axis = -1
     if k < 3:
         axis = k
-        if modes[k] == 0:
-            sign = 1 if x[6 + k] > 0 else -1
-            modes[k] = sign
-            x[6 + k] = sign * current_limit(p, k)
+        if robot.hold[k] == 0:
+            sign = 1 if x[CURRENT + k] > 0 else -1
+            robot.hold[k] = sign
+            x[CURRENT + k] = sign * p.current_limit[k]
             code = EV_LIMIT_ON
         else:
-            modes[k] = 0
+            robot.hold[k] = 0
             code = EV_LIMIT_OFF
     elif k == E_CRITICAL:
-        modes[M_CRITICAL] = 1 - modes[M_CRITICAL]
-        code = EV_CRITICAL_ON if modes[M_CRITICAL] == 1 else EV_CRITICAL_OFF
+        robot.critical = 1 - robot.critical
+        code = EV_CRITICAL_ON if robot.critical == 1 else EV_CRITICAL_OFF
         stop = code == EV_CRITICAL_ON and (stop_mask & STOP_CRITICAL) != 0
     elif k == E_SIDE:
-        modes[M_SIDE] = -modes[M_SIDE]
-        code = EV_COLLISION if x[2] < p[H_OBS] else EV_WALL_CROSS
+        robot.side = -robot.side
+        code = EV_COLLISION if x[Q + 2] < p.wall_height else EV_WALL_CROSS
         stop = code == EV_COLLISION and (stop_mask & STOP_COLLISION) != 0
     elif k == E_HEIGHT:
-        modes[M_ABOVE] = 1 - modes[M_ABOVE]
-        code = EV_ABOVE if modes[M_ABOVE] == 1 else EV_BELOW
+        robot.above = 1 - robot.above
+        code = EV_ABOVE if robot.above == 1 else EV_BELOW
         stop = code == EV_ABOVE and (stop_mask & STOP_ABOVE) != 0
     else:
-        modes[M_INSIDE] = 1 - modes[M_INSIDE]
-        code = EV_TARGET_IN if modes[M_INSIDE] == 1 else EV_TARGET_OUT
+        robot.inside = 1 - robot.inside
+        code = EV_TARGET_IN if robot.inside == 1 else EV_TARGET_OUT
         stop = code == EV_TARGET_IN and (stop_mask & STOP_TARGET) != 0
-    log_event(t, code, axis, ev_t, ev_code, ev_axis, counters)
+    log_event(t, code, axis, robot, log)
     if stop:
-        counters[K_LAST_EVENT] = code
+        robot.stop_event = code
     return stop
 
 
@@ -210,19 +217,22 @@ def dense_output(x, h, k, theta, out):
 
 
 @njit(**JIT)
-def initial_step(x, f0, p, command, config, modes, rtol, atol, volts):
-    """Hairer's starting step, as scipy's select_initial_step (order 5)."""
+def initial_step(x, f0, robot, p, config, volts, scale, y1, f1):
+    """Hairer's starting step, as scipy's select_initial_step (order 5); scale, y1 and f1
+    are work vectors of the state's size."""
     n = x.shape[0]
-    scale = np.empty(n)
+    rtol, atol = config.rtol, config.atol
     for i in range(n):
         scale[i] = atol + rtol * abs(x[i])
     d0 = rms_norm(x, scale)
     d1 = rms_norm(f0, scale)
     h0 = 1e-6 if (d0 < 1e-5 or d1 < 1e-5) else 0.01 * d0 / d1
-    y1 = x + h0 * f0
-    f1 = np.empty(n)
-    derivative(y1, p, command, config, modes, f1, volts)
-    d2 = rms_norm(f1 - f0, scale) / h0
+    for i in range(n):
+        y1[i] = x[i] + h0 * f0[i]
+    derivative(y1, robot, p, config, f1, volts)
+    for i in range(n):
+        f1[i] = f1[i] - f0[i]
+    d2 = rms_norm(f1, scale) / h0
     if d1 <= 1e-15 and d2 <= 1e-15:
         h1 = max(1e-6, h0 * 1e-3)
     else:
@@ -231,25 +241,25 @@ def initial_step(x, f0, p, command, config, modes, rtol, atol, volts):
 
 
 @njit(**JIT_INLINE)
-def record(t, x, p, command, config, modes, volts, rec_t, rec_x, rec_u, counters):
-    n = counters[K_RECORDS]
-    if n < rec_t.shape[0]:
-        voltages(x, p, command, config, modes, volts)
-        rec_t[n] = t
-        rec_x[n, :] = x
-        rec_u[n, :] = volts
-        counters[K_RECORDS] = n + 1
+def record(t, x, robot, p, config, volts, samples):
+    n = robot.n_samples
+    if n < samples.shape[0]:
+        voltages(x, robot, p, config, volts)
+        sample = samples[n]
+        sample.t = t
+        sample.x[:] = x
+        sample.voltage[:] = volts
+        robot.n_samples = n + 1
 
 
 @njit(**JIT)
-def integrate(x, t0, t_end, p, command, config, modes, rtol, atol, step_state,
-              rec_t, rec_x, rec_u, ev_t, ev_code, ev_axis, counters):
-    """Advance x (in place) from t0 to t_end or to the first stop event.
+def integrate(robot, p, config, t_end, log, samples):
+    """Advance the robot (in place) from robot.t to t_end or to the first stop event.
 
-    modes is the hybrid mode vector (in/out; fill it with initial_modes once per
-    simulation). step_state = [next step proposal (<= 0: choose), max step] is
-    in/out so that consecutive calls keep their step size. Returns
-    (status, t_reached).
+    The robot's hybrid modes are in/out (fill them with initial_modes once per
+    simulation), and so is its step size, so that consecutive calls keep it. samples:
+    a SAMPLE array, or None to record nothing. Returns the status; robot.t is the time
+    reached.
     """
     n = N_STATE
     work = np.empty((12, n))  # one allocation per call: this runs once per control step
@@ -265,50 +275,53 @@ def integrate(x, t0, t_end, p, command, config, modes, rtol, atol, step_state,
     g_new = small[1]
     g_try = small[2]
     triggered = np.zeros(N_EVENTS, dtype=np.bool_)
+    x = robot.x
+    rtol, atol = config.rtol, config.atol
 
-    t = t0
-    settle_holds(t, x, p, command, config, modes, volts, ev_t, ev_code, ev_axis, counters)
-    if counters[K_RECORDS] == 0:
-        record(t, x, p, command, config, modes, volts, rec_t, rec_x, rec_u, counters)
-    derivative(x, p, command, config, modes, k[0], volts)
-    counters[K_RHS] += 1
-    event_values(x, p, command, config, modes, volts, g_old)
-    h = step_state[0]
-    h_max = step_state[1]
+    t = robot.t
+    settle_holds(t, x, robot, p, config, volts, log)
+    if samples is not None and robot.n_samples == 0:
+        record(t, x, robot, p, config, volts, samples)
+    derivative(x, robot, p, config, k[0], volts)
+    robot.n_rhs += 1
+    event_values(x, robot, p, config, volts, g_old)
+    h = robot.step_size
+    h_max = robot.max_step
     if h <= 0.0:
-        h = initial_step(x, k[0], p, command, config, modes, rtol, atol, volts)
-        counters[K_RHS] += 1
-    budget = config[C_MAX_STEPS]
+        h = initial_step(x, k[0], robot, p, config, volts, scale, y_stage, y_new)
+        robot.n_rhs += 1
+    budget = config.max_steps
     attempts = 0
     while t < t_end:
         if attempts >= budget:
-            step_state[0] = h
-            return STATUS_MAX_STEPS, t
+            robot.step_size = h
+            robot.t = t
+            return STATUS_MAX_STEPS
         attempts += 1
         h_step = min(h, h_max, t_end - t)
         last = h_step >= t_end - t
         # Dormand-Prince stages, written out (row j of RK_A, RK_B, RK_E; zero entries left out)
         for i in range(n):
             y_stage[i] = x[i] + h_step * (A21 * k[0, i])
-        derivative(y_stage, p, command, config, modes, k[1], volts)
+        derivative(y_stage, robot, p, config, k[1], volts)
         for i in range(n):
             y_stage[i] = x[i] + h_step * (A31 * k[0, i] + A32 * k[1, i])
-        derivative(y_stage, p, command, config, modes, k[2], volts)
+        derivative(y_stage, robot, p, config, k[2], volts)
         for i in range(n):
             y_stage[i] = x[i] + h_step * (A41 * k[0, i] + A42 * k[1, i] + A43 * k[2, i])
-        derivative(y_stage, p, command, config, modes, k[3], volts)
+        derivative(y_stage, robot, p, config, k[3], volts)
         for i in range(n):
             y_stage[i] = x[i] + h_step * (A51 * k[0, i] + A52 * k[1, i] + A53 * k[2, i] + A54 * k[3, i])
-        derivative(y_stage, p, command, config, modes, k[4], volts)
+        derivative(y_stage, robot, p, config, k[4], volts)
         for i in range(n):
             y_stage[i] = x[i] + h_step * (A61 * k[0, i] + A62 * k[1, i] + A63 * k[2, i] + A64 * k[3, i]
                                           + A65 * k[4, i])
-        derivative(y_stage, p, command, config, modes, k[5], volts)
+        derivative(y_stage, robot, p, config, k[5], volts)
         for i in range(n):
             y_new[i] = x[i] + h_step * (B1 * k[0, i] + B3 * k[2, i] + B4 * k[3, i] + B5 * k[4, i]
                                         + B6 * k[5, i])
-        derivative(y_new, p, command, config, modes, k[6], volts)
-        counters[K_RHS] += 6
+        derivative(y_new, robot, p, config, k[6], volts)
+        robot.n_rhs += 6
         for i in range(n):
             err_vec[i] = h_step * (E1 * k[0, i] + E3 * k[2, i] + E4 * k[3, i] + E5 * k[4, i]
                                    + E6 * k[5, i] + E7 * k[6, i])
@@ -316,22 +329,24 @@ def integrate(x, t0, t_end, p, command, config, modes, rtol, atol, step_state,
         err = rms_norm(err_vec, scale)
         if not math.isfinite(err):
             h = 0.1 * h_step
-            counters[K_REJECTED] += 1
+            robot.n_rejected += 1
             if h < 1e-14 * max(1.0, abs(t)):
-                step_state[0] = h
-                return STATUS_NOT_FINITE, t
+                robot.step_size = h
+                robot.t = t
+                return STATUS_NOT_FINITE
             continue
         if err > 1.0:
             h = h_step * max(MIN_FACTOR, SAFETY * err ** -0.2)
-            counters[K_REJECTED] += 1
+            robot.n_rejected += 1
             if h < 1e-14 * max(1.0, abs(t)):
-                step_state[0] = h
-                return STATUS_STEP_UNDERFLOW, t
+                robot.step_size = h
+                robot.t = t
+                return STATUS_STEP_UNDERFLOW
             continue
-        counters[K_STEPS] += 1
+        robot.n_steps += 1
         factor = MAX_FACTOR if err == 0.0 else min(MAX_FACTOR, SAFETY * err ** -0.2)
 
-        event_values(y_new, p, command, config, modes, volts, g_new)
+        event_values(y_new, robot, p, config, volts, g_new)
         any_event = False
         for e in range(N_EVENTS):
             triggered[e] = g_old[e] >= 0.0 and g_new[e] < 0.0
@@ -342,7 +357,8 @@ def integrate(x, t0, t_end, p, command, config, modes, rtol, atol, step_state,
             k[0, :] = k[6, :]
             g_old[:] = g_new
             h = max(h, h_step * factor) if last else h_step * factor
-            record(t, x, p, command, config, modes, volts, rec_t, rec_x, rec_u, counters)
+            if samples is not None:
+                record(t, x, robot, p, config, volts, samples)
             continue
 
         # locate the earliest event on the dense output (Illinois), bracket [lo, hi] in theta
@@ -360,7 +376,7 @@ def integrate(x, t0, t_end, p, command, config, modes, rtol, atol, step_state,
                 if not (lo < theta < hi):
                     theta = 0.5 * (lo + hi)
                 dense_output(x, h_step, k, theta, x_event)
-                event_values(x_event, p, command, config, modes, volts, g_try)
+                event_values(x_event, robot, p, config, volts, g_try)
                 g_mid = g_try[e]
                 if g_mid < 0.0:
                     hi, g_hi = theta, g_mid
@@ -377,21 +393,37 @@ def integrate(x, t0, t_end, p, command, config, modes, rtol, atol, step_state,
             x_event[:] = y_new
         else:
             dense_output(x, h_step, k, theta_first, x_event)
-        event_values(x_event, p, command, config, modes, volts, g_try)
+        event_values(x_event, robot, p, config, volts, g_try)
         t = t_end if (last and theta_first >= 1.0) else t + theta_first * h_step
         x[:] = x_event
         stop = False
         for e in range(N_EVENTS):
             if triggered[e] and g_try[e] < 0.0:
-                stop = handle_event(e, t, x, p, config, modes, ev_t, ev_code, ev_axis, counters) or stop
-        settle_holds(t, x, p, command, config, modes, volts, ev_t, ev_code, ev_axis, counters)
-        record(t, x, p, command, config, modes, volts, rec_t, rec_x, rec_u, counters)
-        derivative(x, p, command, config, modes, k[0], volts)
-        counters[K_RHS] += 1
-        event_values(x, p, command, config, modes, volts, g_old)
+                stop = handle_event(e, t, x, robot, p, config, log) or stop
+        settle_holds(t, x, robot, p, config, volts, log)
+        if samples is not None:
+            record(t, x, robot, p, config, volts, samples)
+        derivative(x, robot, p, config, k[0], volts)
+        robot.n_rhs += 1
+        event_values(x, robot, p, config, volts, g_old)
         h = h_step  # the step up to the event was accurate; keep its size
         if stop:
-            step_state[0] = h
-            return STATUS_STOPPED, t
-    step_state[0] = h
-    return STATUS_END, t
+            robot.step_size = h
+            robot.t = t
+            return STATUS_STOPPED
+    robot.step_size = h
+    robot.t = t
+    return STATUS_END
+
+
+# entry points for Python callers: one-element record arrays dispatch faster than records
+@njit(**JIT)
+def advance(robots, params, configs, t_end, log, samples):
+    """integrate() on element 0 of the record arrays; samples may be None."""
+    return integrate(robots[0], params[0], configs[0], t_end, log, samples)
+
+
+@njit(**JIT)
+def start(robots, params, configs):
+    """initial_modes() on element 0 of the record arrays."""
+    initial_modes(robots[0], params[0], configs[0])

@@ -14,8 +14,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from scara_gym.params import DEFAULT_PARAMS, ScaraParams
-from scara_gym.simulation import (
+from scara_gym.model.params import DEFAULT_PARAMS, ScaraParams
+from scara_gym.model.simulator import (
     REFERENCE_ATOL, REFERENCE_RTOL, Simulator, Trajectory, check_state, start_state,
 )
 

@@ -13,13 +13,13 @@ import time
 import numpy as np
 from scipy.integrate import solve_ivp
 
-from scara_gym import layout as L
-from scara_gym.dynamics import derivative
-from scara_gym.integrator import event_values, handle_event, initial_modes, settle_holds
-from scara_gym.params import DEFAULT_PARAMS, ScaraParams
-from scara_gym.simulation import FORMS, check_tolerance, start_state
+from scara_gym.model import records as R
+from scara_gym.model.dynamics import derivative
+from scara_gym.model.integrator import event_values, handle_event, initial_modes, settle_holds
+from scara_gym.model.params import DEFAULT_PARAMS, ScaraParams
+from scara_gym.model.simulator import FORMS, check_tolerance, start_state
 
-_TRACKED = (L.E_HOLD1, L.E_HOLD2, L.E_HOLD3, L.E_TARGET)
+_TRACKED = (R.E_HOLD1, R.E_HOLD2, R.E_HOLD3, R.E_TARGET)
 
 
 def scipy_point_to_point(params: ScaraParams = DEFAULT_PARAMS, *, method: str = "RK45",
@@ -34,27 +34,24 @@ def scipy_point_to_point(params: ScaraParams = DEFAULT_PARAMS, *, method: str = 
     check_tolerance("atol", atol)
     if form not in FORMS:
         raise ValueError(f"form must be one of {sorted(FORMS)}, got {form!r}")
-    p = params.to_array()
-    command = np.array(params.task.target)
-    config = np.zeros(L.N_CONFIG, dtype=np.int64)
-    config[L.C_FORM] = FORMS[form]
-    config[L.C_STOP] = L.STOP_TARGET
-    modes = np.zeros(L.N_MODES, dtype=np.int64)
-    ev_t = np.empty(64)
-    ev_code = np.empty(64, dtype=np.int64)
-    ev_axis = np.empty(64, dtype=np.int64)
-    counters = np.zeros(L.N_COUNTERS, dtype=np.int64)
+    p = params.to_record()
+    config = np.zeros(1, dtype=R.CONFIG)[0]
+    config["form"] = FORMS[form]
+    config["stops"] = R.STOP_TARGET
+    robot = np.zeros(1, dtype=R.ROBOT)[0]
+    robot["x"] = start_state(params)
+    robot["command"] = params.task.target
+    log = np.zeros(64, dtype=R.EVENT)
     volts = np.empty(3)
-    g = np.empty(L.N_EVENTS)
-    x = start_state(params)
-    initial_modes(x, p, command, config, modes)
+    g = np.empty(R.N_EVENTS)
+    initial_modes(robot, p, config)
 
     def rhs(_t, y):
-        return derivative(y, p, command, config, modes, np.empty(L.N_STATE), volts)
+        return derivative(y, robot, p, config, np.empty(R.N_STATE), volts)
 
     def make_event(k):
         def event(_t, y):
-            return event_values(y, p, command, config, modes, volts, g)[k]
+            return event_values(y, robot, p, config, volts, g)[k]
         event.terminal = True
         event.direction = -1
         return event
@@ -62,10 +59,11 @@ def scipy_point_to_point(params: ScaraParams = DEFAULT_PARAMS, *, method: str = 
     events = [make_event(k) for k in _TRACKED]
     started = time.perf_counter()
     t = 0.0
+    x = robot["x"].copy()
     segments = []
     reach_time = None
     while t < t_end and reach_time is None:
-        settle_holds(t, x, p, command, config, modes, volts, ev_t, ev_code, ev_axis, counters)
+        settle_holds(t, x, robot, p, config, volts, log)
         sol = solve_ivp(rhs, (t, t_end), x, method=method, rtol=rtol, atol=atol,
                         events=events, dense_output=dense)
         segments.append(sol)
@@ -76,6 +74,6 @@ def scipy_point_to_point(params: ScaraParams = DEFAULT_PARAMS, *, method: str = 
         hits = [(times[0], i) for i, times in enumerate(sol.t_events) if len(times)]
         t, which = min(hits)
         x = sol.y_events[which][0].copy()
-        if handle_event(_TRACKED[which], t, x, p, config, modes, ev_t, ev_code, ev_axis, counters):
+        if handle_event(_TRACKED[which], t, x, robot, p, config, log):
             reach_time = t
     return reach_time, segments, time.perf_counter() - started

@@ -12,15 +12,16 @@ from typing import Sequence
 
 import numpy as np
 
-from scara_gym import layout as L
-from scara_gym.integrator import initial_modes, integrate
-from scara_gym.params import DEFAULT_PARAMS, ScaraParams
+from scara_gym.model import records as R
+from scara_gym.model.dynamics import tip_positions
+from scara_gym.model.integrator import advance, start
+from scara_gym.model.params import DEFAULT_PARAMS, ScaraParams
 
-FORMS = {"explicit": L.FORM_EXPLICIT, "implicit": L.FORM_IMPLICIT}
-CONTROLS = {"pd": L.CONTROL_PD, "voltage": L.CONTROL_VOLTAGE}
-CRITICAL_MODES = {"off": L.CRIT_OFF, "switch": L.CRIT_SWITCH, "forced": L.CRIT_FORCED}
-STOPS = {"target": L.STOP_TARGET, "collision": L.STOP_COLLISION,
-         "critical": L.STOP_CRITICAL, "above": L.STOP_ABOVE}
+FORMS = {"explicit": R.FORM_EXPLICIT, "implicit": R.FORM_IMPLICIT}
+CONTROLS = {"pd": R.CONTROL_PD, "voltage": R.CONTROL_VOLTAGE}
+CRITICAL_MODES = {"off": R.CRIT_OFF, "switch": R.CRIT_SWITCH, "forced": R.CRIT_FORCED}
+STOPS = {"target": R.STOP_TARGET, "collision": R.STOP_COLLISION,
+         "critical": R.STOP_CRITICAL, "above": R.STOP_ABOVE}
 
 # Tight default tolerances: the reference runs of the benchmark tasks.
 REFERENCE_RTOL = 1e-10
@@ -33,7 +34,7 @@ def _choice(name: str, value: str, allowed: dict) -> int:
     return allowed[value]
 
 
-def check_state(name: str, value, size: int = L.N_STATE) -> np.ndarray:
+def check_state(name: str, value, size: int = R.N_STATE) -> np.ndarray:
     """A finite float vector of the given size, or a ValueError naming the argument."""
     try:
         array = np.array(value, dtype=float).reshape(-1)
@@ -55,7 +56,7 @@ class Event:
     time: float
     """[s]"""
     kind: str
-    """One of layout.EVENT_NAMES' values."""
+    """One of records.EVENT_NAMES' values."""
     axis: int | None = None
     """0-based axis for current-limit events."""
 
@@ -98,7 +99,7 @@ class Trajectory:
     @property
     def tip(self) -> np.ndarray:
         """Tool tip (x, y, z) [m], shape (n, 3)."""
-        return tip_positions(self.q, self.params)
+        return tip_positions(np.ascontiguousarray(self.q), self.params.to_record())
 
     @property
     def end_time(self) -> float:
@@ -137,12 +138,12 @@ class Trajectory:
         )
 
 
-_STATUS_NAMES = {
-    L.STATUS_END: "end", L.STATUS_MAX_STEPS: "max_steps",
-    L.STATUS_STEP_UNDERFLOW: "step_underflow", L.STATUS_NOT_FINITE: "not_finite",
+STATUS_NAMES = {
+    R.STATUS_END: "end", R.STATUS_MAX_STEPS: "max_steps",
+    R.STATUS_STEP_UNDERFLOW: "step_underflow", R.STATUS_NOT_FINITE: "not_finite",
 }
-_STOP_NAMES = {L.EV_TARGET_IN: "target", L.EV_COLLISION: "collision",
-               L.EV_CRITICAL_ON: "critical", L.EV_ABOVE: "above"}
+STOP_NAMES = {R.EV_TARGET_IN: "target", R.EV_COLLISION: "collision",
+              R.EV_CRITICAL_ON: "critical", R.EV_ABOVE: "above"}
 
 
 class Simulator:
@@ -172,92 +173,91 @@ class Simulator:
         if not isinstance(params, ScaraParams):
             raise TypeError(f"params must be a ScaraParams, got {type(params).__name__}")
         self.params = params
-        self.p = params.to_array()
-        self.config = np.zeros(L.N_CONFIG, dtype=np.int64)
-        self.config[L.C_FORM] = _choice("form", form, FORMS)
-        self.config[L.C_CONTROL] = _choice("control", control, CONTROLS)
-        self.config[L.C_CRITICAL] = _choice("critical", critical, CRITICAL_MODES)
-        self.config[L.C_WIDEN] = int(bool(widen))
-        self.config[L.C_DEC] = int(bool(decelerate))
-        self.config[L.C_WALL] = int(bool(wall))
+        self.p = np.array([params.to_record()], dtype=R.PARAMS)
+        self.config = np.zeros(1, dtype=R.CONFIG)
+        config = self.config[0]
+        config["form"] = _choice("form", form, FORMS)
+        config["control"] = _choice("control", control, CONTROLS)
+        config["critical_rule"] = _choice("critical", critical, CRITICAL_MODES)
+        config["widen"] = bool(widen)
+        config["decelerate"] = bool(decelerate)
+        config["wall"] = bool(wall)
         mask = 0
         for name in stop:
             mask |= _choice("stop", name, STOPS)
-        self.config[L.C_STOP] = mask
-        self.config[L.C_MAX_STEPS] = int(max_steps)
-        self.rtol = check_tolerance("rtol", rtol)
-        self.atol = check_tolerance("atol", atol)
+        config["stops"] = mask
+        config["max_steps"] = int(max_steps)
+        config["rtol"] = self.rtol = check_tolerance("rtol", rtol)
+        config["atol"] = self.atol = check_tolerance("atol", atol)
         if not (np.isfinite(max_step) and max_step > 0):
             raise ValueError(f"max_step must be a finite number > 0 [s], got {max_step!r}")
-        self.modes = np.zeros(L.N_MODES, dtype=np.int64)
-        self.step_state = np.array([0.0, float(max_step)])
-        self.counters = np.zeros(L.N_COUNTERS, dtype=np.int64)
-        self.rec_t = np.empty(record)
-        self.rec_x = np.empty((record, L.N_STATE))
-        self.rec_u = np.empty((record, 3))
-        self.ev_t = np.empty(max_events)
-        self.ev_code = np.empty(max_events, dtype=np.int64)
-        self.ev_axis = np.empty(max_events, dtype=np.int64)
-        self.x = np.zeros(L.N_STATE)
-        self.t = 0.0
-        self.command = np.zeros(3)
+        self.robots = np.zeros(1, dtype=R.ROBOT)
+        self.robot = self.robots[0]
+        self.robot["max_step"] = float(max_step)
+        self.samples = np.zeros(record, dtype=R.SAMPLE)
+        self.log = np.zeros(max_events, dtype=R.EVENT)
+
+    @property
+    def x(self) -> np.ndarray:
+        """The state vector (a view: (q1, q2, q3, v1, v2, v3, I1, I2, I3, E))."""
+        return self.robot["x"]
+
+    @property
+    def t(self) -> float:
+        return float(self.robot["t"])
+
+    @property
+    def command(self) -> np.ndarray:
+        return self.robot["command"]
 
     def reset(self, x0, t0: float = 0.0, command=None) -> None:
-        self.x = check_state("initial state", x0).copy()
-        self.t = float(t0)
+        robot = self.robot
+        robot["x"] = check_state("initial state", x0)
+        robot["t"] = float(t0)
         if command is not None:
-            self.command = check_state("command", command, 3).copy()
-        initial_modes(self.x, self.p, self.command, self.config, self.modes)
-        self.step_state[0] = 0.0
-        self.counters[:] = 0
+            robot["command"] = check_state("command", command, 3)
+        start(self.robots, self.p, self.config)
+        robot["step_size"] = 0.0
+        for counter in ("n_samples", "n_events", "n_rhs", "n_steps", "n_rejected", "stop_event"):
+            robot[counter] = 0
 
     def advance(self, t_end: float, command=None) -> int:
         """Integrate to t_end or the first stop event; returns the kernel status."""
         if command is not None:
-            self.command = check_state("command", command, 3).copy()
-        status, self.t = integrate(
-            self.x, self.t, float(t_end), self.p, self.command, self.config, self.modes,
-            self.rtol, self.atol, self.step_state, self.rec_t, self.rec_x, self.rec_u,
-            self.ev_t, self.ev_code, self.ev_axis, self.counters)
-        return status
+            self.robot["command"] = check_state("command", command, 3)
+        samples = self.samples if len(self.samples) else None
+        return advance(self.robots, self.p, self.config, float(t_end), self.log, samples)
 
     def status_name(self, status: int) -> str:
-        if status == L.STATUS_STOPPED:
-            return _STOP_NAMES[int(self.counters[L.K_LAST_EVENT])]
-        return _STATUS_NAMES[status]
+        if status == R.STATUS_STOPPED:
+            return STOP_NAMES[int(self.robot["stop_event"])]
+        return STATUS_NAMES[status]
 
     @property
     def critical(self) -> bool:
-        return bool(self.modes[L.M_CRITICAL])
+        return bool(self.robot["critical"])
 
     def events(self, since: int = 0) -> list[Event]:
-        n = min(int(self.counters[L.K_EVENTS]), self.ev_t.shape[0])
-        return [Event(float(self.ev_t[i]), L.EVENT_NAMES[int(self.ev_code[i])],
-                      int(self.ev_axis[i]) if self.ev_axis[i] >= 0 else None)
-                for i in range(since, n)]
+        n = min(int(self.robot["n_events"]), len(self.log))
+        log = self.log[since:n]
+        return [Event(float(e["time"]), R.EVENT_NAMES[int(e["code"])],
+                      int(e["axis"]) if e["axis"] >= 0 else None) for e in log]
 
     def trajectory(self, status: int, runtime: float = 0.0) -> Trajectory:
-        n = int(self.counters[L.K_RECORDS])
-        if n >= self.rec_t.shape[0] and self.t > self.rec_t[n - 1]:
+        n = int(self.robot["n_samples"])
+        samples = self.samples[:n]
+        if n and n >= len(self.samples) and self.t > samples["t"][-1]:
             raise RuntimeError("record capacity exhausted; raise Simulator(record=...)")
+        robot = self.robot
         return Trajectory(
-            t=self.rec_t[:n].copy(), x=self.rec_x[:n].copy(), voltage=self.rec_u[:n].copy(),
+            t=samples["t"].copy(), x=samples["x"].copy(), voltage=samples["voltage"].copy(),
             events=self.events(), params=self.params, status=self.status_name(status),
-            stats={"rhs": int(self.counters[L.K_RHS]), "steps": int(self.counters[L.K_STEPS]),
-                   "rejected": int(self.counters[L.K_REJECTED]), "runtime": runtime})
-
-
-def tip_positions(q: np.ndarray, params: ScaraParams) -> np.ndarray:
-    """Vectorized tip_position for joint positions q of shape (n, 3) -> (n, 3) [m]."""
-    q = np.asarray(q, dtype=float)
-    l1, l2 = params.arm.link1_length, params.arm.link2_length
-    return np.stack([l1 * np.cos(q[:, 0]) + l2 * np.cos(q[:, 0] + q[:, 1]),
-                     l1 * np.sin(q[:, 0]) + l2 * np.sin(q[:, 0] + q[:, 1]),
-                     q[:, 2]], axis=1)
+            stats={"rhs": int(robot["n_rhs"]), "steps": int(robot["n_steps"]),
+                   "rejected": int(robot["n_rejected"]), "runtime": runtime})
 
 
 def start_state(params: ScaraParams, q0=None) -> np.ndarray:
     """Joint positions q0 (default: the task's start), rates and currents zero."""
-    x0 = np.zeros(L.N_STATE)
-    x0[:3] = params.task.start if q0 is None else check_state("q0", q0, 3)
+    x0 = np.zeros(R.N_STATE)
+    x0[R.Q:R.Q + 3] = params.task.start if q0 is None else check_state("q0", q0, 3)
     return x0

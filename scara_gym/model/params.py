@@ -10,8 +10,8 @@ seed's 1.4555 s.
 
 Every leaf field carries its unit and allowed range in ``metadata``; the
 validation message names the field path and that range. The hot path does not
-see these objects: :meth:`ScaraParams.to_array` packs them into the flat float
-vector laid out in :mod:`scara_gym.layout`.
+see these objects: :meth:`ScaraParams.to_record` packs them into the ``PARAMS``
+record of :mod:`scara_gym.model.records`.
 """
 
 from __future__ import annotations
@@ -23,7 +23,7 @@ from typing import Any, Mapping
 
 import numpy as np
 
-from scara_gym import layout
+from scara_gym.model.records import PARAMS
 
 POSITIVE = (0.0, math.inf, "open")
 NON_NEGATIVE = (0.0, math.inf, "closed")
@@ -224,31 +224,24 @@ class ScaraParams:
             result = _replace_path(result, path.split("."), value, path)
         return result
 
-    def to_array(self) -> np.ndarray:
-        """Pack into the flat float64 vector of :mod:`scara_gym.layout` for the compiled core."""
-        p = np.zeros(layout.N_PARAMS)
+    def to_record(self) -> np.void:
+        """The compiled core's ``PARAMS`` record (a view into a fresh one-element array)."""
+        record = np.zeros(1, dtype=PARAMS)[0]
         arm = self.arm
-        p[layout.TH1], p[layout.TH2], p[layout.TH3] = arm.theta1, arm.theta2, arm.theta3
-        p[layout.MA33] = self.vertical_mass
-        p[layout.M3L], p[layout.GRAVITY] = arm.load_mass, arm.gravity
-        p[layout.L1], p[layout.L2] = arm.link1_length, arm.link2_length
-        for i, axis in enumerate(self.axes):
-            base = layout.AXIS0 + layout.AXIS_STRIDE * i
-            p[base + layout.A_R] = axis.resistance
-            p[base + layout.A_L] = axis.inductance
-            p[base + layout.A_KT] = axis.torque_constant
-            p[base + layout.A_GEAR] = axis.gear_ratio
-            p[base + layout.A_IMAX] = axis.current_limit
-            p[base + layout.A_P] = axis.p_gain
-            p[base + layout.A_D] = axis.d_gain
-            p[base + layout.A_UMAX] = axis.voltage_limit
-            p[base + layout.A_UWIDE] = self.obstacle.wide_voltage_limits[i]
-        obs = self.obstacle
-        p[layout.X_OBS], p[layout.D_CRIT] = obs.x_position, obs.critical_distance
-        p[layout.H_OBS], p[layout.DEC] = obs.height, obs.dec
-        p[layout.TARGET:layout.TARGET + 3] = self.task.target
-        p[layout.ACC] = self.task.accuracy
-        return p
+        record["theta1"], record["theta2"], record["theta3"] = arm.theta1, arm.theta2, arm.theta3
+        record["vertical_mass"] = self.vertical_mass
+        record["load_mass"], record["gravity"] = arm.load_mass, arm.gravity
+        record["link1_length"], record["link2_length"] = arm.link1_length, arm.link2_length
+        for name in ("resistance", "inductance", "torque_constant", "gear_ratio", "current_limit",
+                     "p_gain", "d_gain", "voltage_limit"):
+            record[name] = [getattr(axis, name) for axis in self.axes]
+        obstacle = self.obstacle
+        record["wide_voltage_limit"] = obstacle.wide_voltage_limits
+        record["wall_x"], record["critical_distance"] = obstacle.x_position, obstacle.critical_distance
+        record["wall_height"], record["dec"] = obstacle.height, obstacle.dec
+        record["target"] = self.task.target
+        record["accuracy"] = self.task.accuracy
+        return record
 
 
 def _replace_path(node: Any, parts: list[str], value: Any, full: str) -> Any:

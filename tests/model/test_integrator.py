@@ -3,8 +3,8 @@
 import numpy as np
 import pytest
 
-from scara_gym.reference import scipy_point_to_point
-from scara_gym.tasks import compare_forms, point_to_point, sample_point_to_point
+from scara_gym.benchmark.reference import scipy_point_to_point
+from scara_gym.benchmark.tasks import compare_forms, point_to_point, sample_point_to_point
 
 SPEC_TASK_B = 1.5703
 

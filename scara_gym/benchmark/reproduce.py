@@ -9,9 +9,9 @@ from pathlib import Path
 
 import numpy as np
 
-from scara_gym.params import DEFAULT_PARAMS, ScaraParams
-from scara_gym.simulation import Trajectory
-from scara_gym.tasks import compare_forms, obstacle_avoidance, point_to_point
+from scara_gym.benchmark.tasks import compare_forms, obstacle_avoidance, point_to_point
+from scara_gym.model.params import DEFAULT_PARAMS, ScaraParams
+from scara_gym.model.simulator import Trajectory
 
 # The seed paper's numbers (shared/seed, Tables 1-3 and section 3.3)
 SEED_RUNTIME_IMPLICIT = 4.7382   # MATLAB ode45, s
@@ -192,9 +192,9 @@ def write_figures(runs: dict[str, Trajectory], params: ScaraParams, out: Path) -
 
 
 def point_to_point_target_tip(params: ScaraParams) -> np.ndarray:
-    from scara_gym.dynamics import tip_position
+    from scara_gym.model.dynamics import tip_position
     q = params.task.target
-    return np.array(tip_position(q[0], q[1], q[2], params.to_array()))
+    return np.array(tip_position(q[0], q[1], q[2], params.to_record()))
 
 
 def reproduce(out: Path = Path("c11-results"), repeats: int = 5,

@@ -15,8 +15,8 @@ from gymnasium.utils.env_checker import check_env
 
 import scara_gym  # noqa: F401  (registers the environment)
 from scara_gym.envs import ScaraEnv
-from scara_gym.simulation import Simulator, start_state
-from scara_gym.tasks import sample_point_to_point
+from scara_gym.benchmark.tasks import sample_point_to_point
+from scara_gym.model.simulator import Simulator, start_state
 
 C11_TARGET = np.array([2.0, 2.0, 0.3])
 
@@ -84,7 +84,7 @@ def test_pd_mode_holding_the_c11_target_reproduces_task_b():
     while not (terminated or truncated):
         _, _, terminated, truncated, info = env.step(action)
         steps += 1
-        states.append((env.sim.t, env.sim.x.copy()))
+        states.append((env.time, env.state))
     assert info["is_success"] and terminated
     assert abs(info["reach_time"] - 1.5703) < env.control_dt
     assert steps == math.ceil(info["reach_time"] / env.control_dt)
@@ -117,7 +117,7 @@ def test_collision_between_control_steps_is_located_inside_the_step():
     sim.advance(2.0)
     event_time = sim.events()[-1].time
     assert step * 0.25 < event_time < (step + 1) * 0.25
-    assert env.sim.t == pytest.approx((step + 1) * 0.25)  # penalty: the step runs to its end
+    assert env.time == pytest.approx((step + 1) * 0.25)  # penalty: the step runs to its end
 
     terminate = ScaraEnv(control_mode="voltage", collision="terminate", control_dt=0.25)
     terminate.reset(seed=0)
@@ -126,7 +126,7 @@ def test_collision_between_control_steps_is_located_inside_the_step():
         if terminated:
             break
     assert terminated and not truncated and info["collision"]
-    assert terminate.sim.t == pytest.approx(event_time, abs=1e-6)  # the step ends at the wall
+    assert terminate.time == pytest.approx(event_time, abs=1e-6)  # the step ends at the wall
     assert info["reward_terms"]["collision"] == -terminate.reward_weights.collision
     with pytest.raises(RuntimeError, match="reset"):
         terminate.step(np.zeros(3))
@@ -298,9 +298,9 @@ def test_random_actions_at_the_default_tolerances_track_a_tight_integration():
         states = []
         for a in actions:
             env.step(a)
-            states.append(env.sim.x[:9].copy())
+            states.append(env.state[:9])
         runs.append(np.array(states))
-        clocks.append(env.sim.t)
+        clocks.append(env.time)
     default, tight = runs
     assert clocks[0] == clocks[1]  # no episode end in either run
     rtol, atol = 1e-5, 1e-6  # the defaults

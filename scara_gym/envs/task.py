@@ -1,0 +1,331 @@
+"""The C11 task: one owner of the configuration, the compiled records and the episode logic.
+
+:class:`ScaraTask` validates the environment's arguments, holds the record arrays the
+compiled step (:mod:`scara_gym.envs.core`) works on for N robots, draws targets,
+resets robots and turns step outcomes into termination and info. The single
+environment is a ``ScaraTask`` with one robot, the vector environment one with N; both
+are thin Gymnasium adapters over it. No gymnasium import here: spaces are the adapters'.
+
+Public layouts: ``OBSERVATION_NAMES`` (one name per observation entry, the card's
+table) and ``OBSERVATION_LAYOUT`` (field name -> slice or index), and the set-point <->
+action mapping of the "pd" mode (:meth:`ScaraTask.setpoint_to_action`,
+:meth:`ScaraTask.action_to_setpoint`).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, fields
+
+import numpy as np
+
+from scara_gym.envs.core import (
+    N_OBS, OBSERVATION, OUTCOME, REWARD_TERMS, TASK, pd_actions, start_robot, step_robot, step_robots,  # noqa: F401
+)
+from scara_gym.model import records as R
+from scara_gym.model.dynamics import tip_position
+from scara_gym.model.params import DEFAULT_PARAMS, ScaraParams
+from scara_gym.model.simulator import CONTROLS, STATUS_NAMES, check_state, check_tolerance
+
+CONTROL_MODES = ("pd", "voltage")
+COLLISION_MODES = ("terminate", "penalty")
+
+# PD set-point range the action [-1, 1] spans [rad, rad, m]
+SETPOINT_LOW = np.array([-math.pi, -math.pi, 0.0])
+SETPOINT_HIGH = np.array([math.pi, math.pi, 0.4])
+# randomize_target draws q^ uniformly from this box [rad, rad, m]; see the card
+TARGET_LOW = np.array([1.5, 1.5, 0.2])
+TARGET_HIGH = np.array([2.5, 2.5, 0.35])
+TARGET_CLEARANCE = 0.02  # [m] a drawn target tip keeps this much beyond the critical band
+ANGLE_BOUND = 6 * math.pi   # [rad] observation bound of q1, q2 (clipped beyond)
+HEIGHT_BOUND = 1.0          # [m]
+ANGLE_RATE_BOUND = 20.0     # [rad/s]
+HEIGHT_RATE_BOUND = 2.0     # [m/s]
+EVENT_LOG_SIZE = 256        # events one robot can log in one control step
+
+OBSERVATION_LAYOUT = {
+    name: (slice(offset, offset + dtype.shape[0]) if dtype.shape else offset)
+    for name, (dtype, offset) in ((n, (OBSERVATION[n], OBSERVATION.fields[n][1] // 4))
+                                  for n in OBSERVATION.names)
+}
+"""Observation field -> slice (vectors) or index (scalars) of the flat observation."""
+OBSERVATION_NAMES = (
+    "q1", "q2", "q3", "q1_rate", "q2_rate", "q3_rate", "current1", "current2", "current3",
+    "target_error1", "target_error2", "target_error3", "tip_x", "tip_y", "wall_distance",
+    "height_margin", "critical", "time_left")
+"""One name per observation entry (the card's table)."""
+assert len(OBSERVATION_NAMES) == N_OBS
+
+
+@dataclass(frozen=True)
+class RewardWeights:
+    """Weights of the named reward terms (all >= 0; the sign is in the term)."""
+
+    progress: float = 10.0
+    """per unit reduction of the scaled target distance ||(q - q^) / (1 rad, 1 rad, 0.1 m)||"""
+    time: float = 10.0
+    """per second of simulated time (a cost)"""
+    energy: float = 0.001
+    """per joule of electrical energy drawn, int sum U_i I_i dt (a cost)"""
+    collision: float = 50.0
+    """per collision with the wall (a cost)"""
+    success: float = 10.0
+    """once, when all |q_i - q^_i| < acc"""
+
+    def __post_init__(self) -> None:
+        for f in fields(self):
+            value = getattr(self, f.name)
+            if isinstance(value, bool) or not isinstance(value, (int, float)) or not (
+                    math.isfinite(value) and value >= 0):
+                raise ValueError(f"reward_weights.{f.name} must be a finite number >= 0, got {value!r}")
+
+
+def check_actions(action, shape: tuple[int, ...]) -> np.ndarray:
+    """Finite float64 actions of the given shape (C-contiguous; not yet clipped: the compiled
+    step clips them to [-1, 1] and counts the clipped components)."""
+    try:
+        a = np.ascontiguousarray(action, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise ValueError(f"action must be numbers in [-1, 1] of shape {shape}, got {action!r}") from None
+    if a.shape != shape:
+        raise ValueError(f"action must have shape {shape}, got shape {a.shape}")
+    if not np.isfinite(a).all():
+        raise ValueError(f"action must be finite (allowed range [-1, 1]), got {a.tolist()}")
+    return a
+
+
+def draw_target(rng: np.random.Generator, start: np.ndarray, params: ScaraParams, obstacle: bool) -> np.ndarray:
+    """A target from the documented region that needs the wall passed and is reachable above it."""
+    obs = params.obstacle
+    p = params.to_record()
+    x_start, _, _ = tip_position(start[0], start[1], start[2], p)
+    start_side = 1.0 if x_start >= obs.x_position else -1.0
+    for _ in range(1000):
+        target = rng.uniform(TARGET_LOW, TARGET_HIGH)
+        if not obstacle:
+            return target
+        x_tip, _, _ = tip_position(target[0], target[1], target[2], p)
+        beyond = (x_tip - obs.x_position) * start_side < -(obs.critical_distance + TARGET_CLEARANCE)
+        if beyond and target[2] >= obs.height + TARGET_CLEARANCE:
+            return target
+    raise RuntimeError("randomize_target: no target in the documented region passes the wall "
+                       "rules with these parameters")
+
+
+def _positive_seconds(name: str, value) -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not (
+            math.isfinite(value) and value > 0):
+        raise ValueError(f"{name} must be a finite number > 0 [s], got {value!r}")
+    return float(value)
+
+
+def _params(params) -> ScaraParams:
+    if params is None:
+        return DEFAULT_PARAMS
+    if isinstance(params, dict):
+        return DEFAULT_PARAMS.replace(params)
+    if not isinstance(params, ScaraParams):
+        raise TypeError(f"params must be a ScaraParams or a dict of overrides, got {type(params).__name__}")
+    return params
+
+
+def _reward_weights(reward_weights) -> RewardWeights:
+    if reward_weights is None:
+        return RewardWeights()
+    if isinstance(reward_weights, dict):
+        unknown = set(reward_weights) - {f.name for f in fields(RewardWeights)}
+        if unknown:
+            raise ValueError(f"reward_weights has unknown terms {sorted(unknown)}; "
+                             f"allowed: {[f.name for f in fields(RewardWeights)]}")
+        return RewardWeights(**reward_weights)
+    if not isinstance(reward_weights, RewardWeights):
+        raise TypeError("reward_weights must be a RewardWeights or a dict")
+    return reward_weights
+
+
+class ScaraTask:
+    """Scara-C11 for ``num_robots`` robots: arguments as :class:`~scara_gym.envs.ScaraEnv`."""
+
+    def __init__(self, control_mode: str = "pd", obstacle: bool = True, collision: str = "terminate",
+                 target=None, start=None, randomize_target: bool = False,
+                 reward_weights: RewardWeights | dict | None = None, control_dt: float = 0.01,
+                 time_limit: float = 3.0, params: ScaraParams | dict | None = None,
+                 rtol: float = 1e-5, atol: float = 1e-6, num_robots: int = 1) -> None:
+        if control_mode not in CONTROL_MODES:
+            raise ValueError(f"control_mode must be one of {CONTROL_MODES}, got {control_mode!r}")
+        if collision not in COLLISION_MODES:
+            raise ValueError(f"collision must be one of {COLLISION_MODES}, got {collision!r}")
+        if not isinstance(obstacle, (bool, np.bool_)):
+            raise TypeError(f"obstacle must be True or False, got {obstacle!r}")
+        self.control_dt = _positive_seconds("control_dt", control_dt)
+        self.time_limit = _positive_seconds("time_limit", time_limit)
+        self.params = _params(params)
+        self.reward_weights = _reward_weights(reward_weights)
+        self.control_mode = control_mode
+        self.obstacle = bool(obstacle)
+        self.collision_mode = collision
+        self.randomize_target = bool(randomize_target)
+        self.rtol = check_tolerance("rtol", rtol)
+        self.atol = check_tolerance("atol", atol)
+        self.default_target = self.check_target(target if target is not None else self.params.task.target, "target")
+        self.default_start = check_state("start", start if start is not None else self.params.task.start, 3)
+        self.setpoint_center = 0.5 * (SETPOINT_HIGH + SETPOINT_LOW)
+        self.setpoint_half = 0.5 * (SETPOINT_HIGH - SETPOINT_LOW)
+        self.obs_low, self.obs_high = self._observation_bounds()
+        self.num_robots = n = int(num_robots)
+
+        # the compiled step's records: shared configuration and constants, per-robot state
+        self.config = np.zeros(1, dtype=R.CONFIG)
+        config = self.config[0]
+        config["control"] = CONTROLS[control_mode]
+        config["critical_rule"] = R.CRIT_SWITCH if self.obstacle else R.CRIT_OFF
+        config["widen"] = config["wall"] = self.obstacle
+        stops = R.STOP_TARGET | (R.STOP_COLLISION if (self.obstacle and collision == "terminate") else 0)
+        config["stops"] = stops
+        config["max_steps"] = 2_000_000
+        config["rtol"], config["atol"] = self.rtol, self.atol
+        self.task = np.zeros(1, dtype=TASK)
+        constants = self.task[0]
+        constants["control_dt"], constants["time_limit"] = self.control_dt, self.time_limit
+        constants["obstacle"], constants["pd"] = self.obstacle, control_mode == "pd"
+        for term in REWARD_TERMS:
+            constants[f"{term}_weight"] = getattr(self.reward_weights, term)
+        constants["setpoint_center"], constants["setpoint_half"] = self.setpoint_center, self.setpoint_half
+        constants["obs_low"], constants["obs_high"] = self.obs_low, self.obs_high
+        self.robot_params = np.repeat(np.array([self.params.to_record()], dtype=R.PARAMS), n)
+        self.robots = np.zeros(n, dtype=R.ROBOT)
+        self.log = np.zeros((n, EVENT_LOG_SIZE), dtype=R.EVENT)
+        self.outcomes = np.zeros(n, dtype=OUTCOME)
+        self.obs = np.zeros((n, N_OBS), dtype=np.float32)
+
+    # -- layouts and mappings ------------------------------------------------------------
+    def _observation_bounds(self) -> tuple[np.ndarray, np.ndarray]:
+        reach = self.params.arm.reach
+        obs = self.params.obstacle
+        wall = reach + abs(obs.x_position)
+        margin = HEIGHT_BOUND + abs(obs.height)
+        high = np.array([
+            ANGLE_BOUND, ANGLE_BOUND, HEIGHT_BOUND, ANGLE_RATE_BOUND, ANGLE_RATE_BOUND, HEIGHT_RATE_BOUND,
+            *self.params.current_limits, 2 * ANGLE_BOUND, 2 * ANGLE_BOUND, 2 * HEIGHT_BOUND,
+            reach, reach, wall, margin, 1.0, 1.0])
+        low = -high
+        low[OBSERVATION_LAYOUT["critical"]] = low[OBSERVATION_LAYOUT["time_left"]] = 0.0
+        return low.astype(np.float32), high.astype(np.float32)
+
+    def setpoint_to_action(self, setpoint) -> np.ndarray:
+        """The "pd" action (float64, unclipped) that commands the set-point q^ [rad, rad, m]."""
+        return (check_state("setpoint", setpoint, 3) - self.setpoint_center) / self.setpoint_half
+
+    def action_to_setpoint(self, action) -> np.ndarray:
+        """The "pd" set-point q^ [rad, rad, m] an action commands (batches too)."""
+        return self.setpoint_center + self.setpoint_half * np.asarray(action, dtype=float)
+
+    def pd_action(self, obs, setpoint) -> np.ndarray:
+        """The "voltage"-mode action that applies the C11 PD law to a set-point q^ [rad, rad, m]
+        on an observation: U / limit, with the widened limit where the observation says
+        critical (what the environment's "pd" mode does, evaluated once per control step).
+        Batches: obs (n, 18) and setpoint (n, 3) or (3,) give (n, 3); one obs gives (3,)."""
+        single = np.ndim(obs) == 1
+        obs = np.atleast_2d(np.asarray(obs, dtype=np.float64))
+        setpoints = np.ascontiguousarray(np.broadcast_to(np.asarray(setpoint, dtype=np.float64), (len(obs), 3)))
+        out = pd_actions(np.ascontiguousarray(obs), setpoints, self.robot_params, np.empty((len(obs), 3)))
+        return out[0] if single else out
+
+    def check_target(self, target, name: str) -> np.ndarray:
+        target = check_state(name, target, 3)
+        inside = np.all((target >= SETPOINT_LOW) & (target <= SETPOINT_HIGH))
+        if self.control_mode == "pd" and not inside:
+            raise ValueError(f"{name} must lie in the set-point range q1, q2 in [-pi, pi] rad, "
+                             f"q3 in [0, 0.4] m of the 'pd' mode, got {target.tolist()}")
+        return target
+
+    # -- episodes ------------------------------------------------------------------------
+    def episode_start(self, rng: np.random.Generator, options: dict | None) -> tuple[np.ndarray, np.ndarray]:
+        """(start, target) of a new episode from the reset options and the episode RNG."""
+        options = {} if options is None else dict(options)
+        unknown = set(options) - {"target", "start"}
+        if unknown:
+            raise ValueError(f"unknown reset options {sorted(unknown)}; allowed: 'target', 'start'")
+        start = check_state("options['start']", options["start"], 3) if "start" in options else self.default_start
+        if "target" in options:
+            target = self.check_target(options["target"], "options['target']")
+        elif self.randomize_target:
+            target = draw_target(rng, start, self.params, self.obstacle)
+        else:
+            target = self.default_target
+        if np.max(np.abs(start - target)) < self.params.task.accuracy:
+            raise ValueError(f"start {start.tolist()} is already within acc of the target {target.tolist()}")
+        return start.copy(), target.copy()
+
+    def reset_robot(self, i: int, rng: np.random.Generator, options: dict | None = None) -> dict:
+        """Start a new episode of robot i; returns the reset info (target, start)."""
+        start, target = self.episode_start(rng, options)
+        self.robot_params["target"][i] = target
+        robot = self.robots[i]
+        robot["x"] = 0.0
+        robot["x"][R.Q:R.Q + 3] = start
+        robot["command"] = target if self.control_mode == "pd" else 0.0
+        start_robot(i, self.robots, self.robot_params, self.config, self.task, self.outcomes, self.obs)
+        return {"target": target, "start": start}
+
+    # -- steps ---------------------------------------------------------------------------
+    def step_robot(self, i: int, action: np.ndarray) -> None:
+        """One control step of robot i (action: 3 float64, C-contiguous); raises on bad input
+        (nothing changed) or a failed integration."""
+        status = step_robot(i, action, self.robots, self.robot_params, self.config, self.task, self.log,
+                            self.outcomes, self.obs)
+        if status < 0:
+            self._raise_for(status, i, action)
+
+    def step_robots(self, active: np.ndarray, actions: np.ndarray) -> None:
+        """One control step of every active robot in parallel (actions: checked (N, 3) float64)."""
+        step_robots(active, actions, self.robots, self.robot_params, self.config, self.task, self.log,
+                    self.outcomes, self.obs)
+        failed = active & (self.outcomes["status"] < 0)
+        if failed.any():
+            i = int(np.flatnonzero(failed)[0])
+            self._raise_for(int(self.outcomes["status"][i]), i, actions[i])
+
+    def _raise_for(self, status: int, i: int, action) -> None:
+        if status == R.STATUS_BAD_ACTION:
+            check_actions(action, (3,))  # raises naming it
+        where = f" in sub-environment {i}" if self.num_robots > 1 else ""
+        raise RuntimeError(f"integration failed ({STATUS_NAMES[status]}){where} "
+                           f"at t = {self.robots['t'][i]:.6f} s")
+
+    def terminated(self, outcome) -> bool | np.ndarray:
+        """Success, or a collision where collisions terminate (one outcome or an array of them)."""
+        return outcome["reached"] | ((outcome["collisions"] > 0) & (self.collision_mode == "terminate"))
+
+    def info(self, index: int | None = None) -> dict:
+        """The step info of robot ``index`` (Python scalars, the single environment's form, with
+        reach_time only on success) or of all robots (arrays, the vector environment's form, with
+        reach_time masked by _reach_time)."""
+        outcomes = self.outcomes if index is None else self.outcomes[index]
+        robots = self.robots if index is None else self.robots[index]
+        collided = outcomes["collisions"] > 0
+        reached = outcomes["reached"]
+        info = {
+            "reward_terms": {term: outcomes[term] for term in REWARD_TERMS},
+            "is_success": reached,
+            "cost": collided.astype(np.float64),
+            "collision": collided,
+            "collisions": outcomes["episode_collisions"],
+            "critical": robots["critical"] == 1,
+            "time": robots["t"],
+            "energy": robots["x"][..., R.ENERGY],
+            "clipped_actions": outcomes["clipped"],
+        }
+        if index is None:
+            info["reach_time"] = np.where(reached, outcomes["reach_time"], np.nan)
+            info["_reach_time"] = reached
+            info["reward_terms"] = {term: value.copy() for term, value in info["reward_terms"].items()}
+            return {key: (value.copy() if isinstance(value, np.ndarray) else value) for key, value in info.items()}
+        info = {key: (value if isinstance(value, dict) else value.item()) for key, value in info.items()}
+        info["reward_terms"] = {term: value.item() for term, value in info["reward_terms"].items()}
+        info["current_limited"] = robots["hold"] != 0
+        info["voltage"] = outcomes["voltage"].copy()
+        info["target"] = self.robot_params["target"][index].copy()
+        if reached:
+            info["reach_time"] = outcomes["reach_time"].item()
+        return info

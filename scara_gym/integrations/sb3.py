@@ -1,0 +1,84 @@
+"""stable-baselines3 on the native vector environment.
+
+SB3 does not accept Gymnasium vector environments; :class:`SB3VecEnv` presents a
+:class:`~scara_gym.envs.vector.ScaraVectorEnv` (in "SameStep" autoreset mode) through
+SB3's ``VecEnv`` interface: ``terminal_observation``, ``TimeLimit.truncated``,
+``is_success`` and Monitor-style ``episode`` statistics (r, l, t) in the infos of
+finished episodes, as SB3's own wrappers produce them (so no VecMonitor is needed).
+Wrap it in ``VecNormalize`` as usual.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import time
+
+import numpy as np
+from stable_baselines3.common.vec_env.base_vec_env import VecEnv
+
+from scara_gym.envs.vector import ScaraVectorEnv
+
+
+class SB3VecEnv(VecEnv):
+    """``SB3VecEnv(num_envs=8, control_mode="pd", ...)``: arguments as ScaraVectorEnv."""
+
+    def __init__(self, num_envs: int = 8, **kwargs: Any) -> None:
+        kwargs["autoreset_mode"] = "SameStep"
+        self.venv = ScaraVectorEnv(num_envs=num_envs, **kwargs)
+        super().__init__(num_envs, self.venv.single_observation_space, self.venv.single_action_space)
+        self._actions: np.ndarray | None = None
+        self._returns = np.zeros(num_envs)
+        self._lengths = np.zeros(num_envs, dtype=np.int64)
+        self._started = time.time()
+
+    def reset(self):
+        seeds = self._seeds
+        seed = None if all(s is None for s in seeds) else seeds
+        obs, info = self.venv.reset(seed=seed)
+        self.reset_infos = [{"target": info["target"][i]} for i in range(self.num_envs)]
+        self._reset_seeds()
+        self._reset_options()
+        self._returns[:] = 0.0
+        self._lengths[:] = 0
+        return obs
+
+    def step_async(self, actions: np.ndarray) -> None:
+        self._actions = np.asarray(actions)
+
+    def step_wait(self):
+        obs, reward, terminated, truncated, info = self.venv.step(self._actions)
+        dones = terminated | truncated
+        self._returns += reward
+        self._lengths += 1
+        infos: list[dict[str, Any]] = [{} for _ in range(self.num_envs)]
+        for i in np.flatnonzero(dones):
+            infos[i] = {
+                "terminal_observation": info["final_obs"][i],
+                "TimeLimit.truncated": bool(truncated[i] and not terminated[i]),
+                "is_success": bool(info["is_success"][i]),
+                "collisions": int(info["collisions"][i]),
+                "episode": {"r": float(self._returns[i]), "l": int(self._lengths[i]),
+                            "t": round(time.time() - self._started, 6)},
+            }
+            self._returns[i] = 0.0
+            self._lengths[i] = 0
+        return obs, reward.astype(np.float32), dones, infos
+
+    def close(self) -> None:
+        self.venv.close()
+
+    def get_attr(self, attr_name: str, indices=None) -> list[Any]:
+        owner = self.venv if hasattr(self.venv, attr_name) else self.venv.task
+        return [getattr(owner, attr_name) for _ in self._get_indices(indices)]
+
+    def set_attr(self, attr_name: str, value: Any, indices=None) -> None:
+        raise AttributeError("the robots of a native vector environment share one configuration; "
+                             "build a new SB3VecEnv instead of setting attributes")
+
+    def env_method(self, method_name: str, *method_args, indices=None, **method_kwargs) -> list[Any]:
+        method = getattr(self.venv.task, method_name)
+        return [method(*method_args, **method_kwargs) for _ in self._get_indices(indices)]
+
+    def env_is_wrapped(self, wrapper_class, indices=None) -> list[bool]:
+        return [False for _ in self._get_indices(indices)]

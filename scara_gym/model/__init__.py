@@ -1,0 +1,22 @@
+"""The C11 model: parameters, record types, dynamics, integrator and simulator.
+
+numpy and numba only: nothing here imports gymnasium or torch (a test reads the imports).
+
+- :mod:`~scara_gym.model.params`: the frozen parameter tree with units and ranges;
+- :mod:`~scara_gym.model.records`: the record types of the compiled core;
+- :mod:`~scara_gym.model.dynamics`: the model as pure compiled functions;
+- :mod:`~scara_gym.model.integrator`: Dormand-Prince 5(4) with located mode switches;
+- :mod:`~scara_gym.model.simulator`: :class:`Simulator`, :class:`Trajectory`, :class:`Event`;
+- :mod:`~scara_gym.model.compilation`: JIT options and the source-keyed numba cache.
+"""
+
+from scara_gym.model import compilation  # noqa: F401  (cache locators before any compiled function)
+from scara_gym.model.params import (
+    DEFAULT_PARAMS, ArmParams, AxisParams, ObstacleParams, ScaraParams, TaskParams,
+)
+from scara_gym.model.simulator import Event, Simulator, Trajectory, start_state
+
+__all__ = [
+    "ArmParams", "AxisParams", "DEFAULT_PARAMS", "Event", "ObstacleParams", "ScaraParams",
+    "Simulator", "TaskParams", "Trajectory", "start_state",
+]

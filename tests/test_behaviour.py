@@ -1,0 +1,95 @@
+"""Behaviour is unchanged by refactoring: digests of seeded rollouts of both environments in
+both control modes, recorded on the code before the "One house" restructuring (0.1.0), and
+the tables of ``scara-c11 reproduce`` (tests/benchmark/test_cli.py)."""
+
+import hashlib
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+import scara_gym  # noqa: F401
+
+CONFIGS = {
+    "pd": {"control_mode": "pd", "randomize_target": True},  # collisions
+    "pd-free": {"control_mode": "pd", "obstacle": False},  # successes
+    "voltage": {"control_mode": "voltage", "randomize_target": True, "collision": "penalty"},  # truncations
+}
+# sha256 of 2,000 steps of the single env and 4 x 500 steps of the vector env, recorded at
+# commit e1f5cf0 (before the restructuring) with the functions below
+RECORDED = {
+    ("pd", "single"): "f88502d4188d93a5023f23449b2e06d474d62f2f038cd230d3c29fec22db2394",
+    ("pd", "NextStep"): "271cf39ccbb735774cc052695e152a8e614cc276ada99dbb2f57a7c61444a377",
+    ("pd", "SameStep"): "e8b8b51a19aa17b9716c00bdd123f39ce21c70bc362c2de7c00c5dd1a2334a92",
+    ("pd-free", "single"): "9165dfe88c344aee34bd9648971c07d53ffadc08fa61998e34a4cc63c4f89bb4",
+    ("pd-free", "NextStep"): "5b8d70488ade0907591e388c6d5358adea81995737a0f4e2663f849039d3d4bb",
+    ("pd-free", "SameStep"): "779497290a3754333df0d5015d6e48deb375caaafe772753f9d2a1a7ba84cfcf",
+    ("voltage", "single"): "9e2a34835a5bb30c7f91001118aa951414dcd3e1336d761c562802f255064d2c",
+    ("voltage", "NextStep"): "90dcfb55440900fab6dbca77fe025ac10ffb5216ee5b025521aea4b135ea9455",
+    ("voltage", "SameStep"): "51c6d260deca0e478cf97b0cf26186b87a8ea0356b8d3343b6543fd5b350b217",
+}
+
+
+def _feed(digest, value):
+    """Every value as float64 bytes, dicts by sorted key: obs, rewards, flags and info."""
+    if isinstance(value, dict):
+        for key in sorted(value):
+            digest.update(key.encode())
+            _feed(digest, value[key])
+    else:
+        digest.update(np.ascontiguousarray(np.asarray(value, dtype=np.float64)).tobytes())
+
+
+def _actions(rng, control_mode, n):
+    if control_mode == "pd":  # the C11 target with occasional set-point kicks
+        base = np.array([2 / np.pi, 2 / np.pi, 0.5])
+        kicks = rng.random((n, 1)) < 0.05
+        return base + rng.normal(0.0, 0.5, (n, 3)) * kicks
+    return rng.uniform(-1.2, 1.2, (n, 3))  # beyond [-1, 1] too: clipping is counted
+
+
+def single_env_digest(config, steps=2000, seed=0):
+    env = gym.make("Scara-C11-v0", **config)
+    rng = np.random.default_rng(seed)
+    digest = hashlib.sha256()
+    obs, info = env.reset(seed=seed)
+    _feed(digest, obs), _feed(digest, info)
+    for action in _actions(rng, config["control_mode"], steps):
+        obs, reward, terminated, truncated, info = env.step(action)
+        for value in (obs, reward, terminated, truncated, info):
+            _feed(digest, value)
+        if terminated or truncated:
+            obs, info = env.reset()
+            _feed(digest, obs), _feed(digest, info)
+    return digest.hexdigest()
+
+
+def vector_env_digest(config, autoreset_mode, num_envs=4, steps=500, seed=0):
+    venv = gym.make_vec("Scara-C11-v0", num_envs=num_envs, vectorization_mode="vector_entry_point",
+                        autoreset_mode=autoreset_mode, **config)
+    rng = np.random.default_rng(seed)
+    digest = hashlib.sha256()
+    obs, info = venv.reset(seed=seed)
+    _feed(digest, obs), _feed(digest, info)
+    actions = _actions(rng, config["control_mode"], steps * num_envs).reshape(steps, num_envs, 3)
+    for action in actions:
+        for value in venv.step(action):
+            _feed(digest, value)
+    return digest.hexdigest()
+
+
+@pytest.mark.parametrize("name", CONFIGS)
+def test_single_env_rollouts_are_bit_identical_to_the_recorded_ones(name):
+    assert single_env_digest(CONFIGS[name]) == RECORDED[(name, "single")]
+
+
+@pytest.mark.parametrize("autoreset_mode", ["NextStep", "SameStep"])
+@pytest.mark.parametrize("name", CONFIGS)
+def test_vector_env_rollouts_are_bit_identical_to_the_recorded_ones(name, autoreset_mode):
+    assert vector_env_digest(CONFIGS[name], autoreset_mode) == RECORDED[(name, autoreset_mode)]
+
+
+def test_the_digest_sees_a_change():
+    """The digest has teeth: a different reward weight changes it."""
+    changed = dict(CONFIGS["pd-free"], reward_weights={"time": 10.000001})
+    assert single_env_digest(changed, steps=200) != single_env_digest(CONFIGS["pd-free"], steps=200)

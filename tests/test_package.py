@@ -1,0 +1,157 @@
+"""The package as a whole: its layout, the source-keyed compiled cache, and an installed copy
+that works outside the clone."""
+
+import ast
+import hashlib
+import os
+import subprocess
+import sys
+import textwrap
+from pathlib import Path
+
+import pytest
+
+import scara_gym
+from scara_gym.model import compilation
+
+ROOT = Path(__file__).resolve().parents[1]
+PACKAGE = ROOT / "scara_gym"
+
+
+def imported_modules(path: Path) -> set[str]:
+    names = set()
+    for node in ast.walk(ast.parse(path.read_text())):
+        if isinstance(node, ast.Import):
+            names.update(alias.name.split(".")[0] for alias in node.names)
+        elif isinstance(node, ast.ImportFrom) and node.module and node.level == 0:
+            names.add(node.module.split(".")[0])
+    return names
+
+
+def test_the_model_package_imports_neither_gymnasium_nor_torch():
+    files = sorted((PACKAGE / "model").glob("*.py"))
+    assert len(files) >= 6
+    for path in files:
+        assert not imported_modules(path) & {"gymnasium", "gym", "torch"}, path.name
+
+
+def test_every_module_with_compiled_functions_keys_the_cache():
+    compiled = sorted(str(p.relative_to(PACKAGE)) for p in PACKAGE.rglob("*.py") if "@njit" in p.read_text())
+    assert compiled == sorted(set(compiled) & set(compilation.COMPILED_SOURCES))
+    assert set(compiled) <= set(compilation.COMPILED_SOURCES)
+    assert all((PACKAGE / name).exists() for name in compilation.COMPILED_SOURCES)
+
+
+def test_the_source_key_changes_with_any_compiled_source(tmp_path):
+    for name in ("a.py", "b.py"):
+        (tmp_path / name).write_text("VALUE = 1\n")
+    before = compilation.source_key(tmp_path, ("a.py", "b.py"))
+    (tmp_path / "b.py").write_text("VALUE = 2\n")
+    assert compilation.source_key(tmp_path, ("a.py", "b.py")) != before
+
+
+TOY_CONSTANTS = "VALUE = {value}\n"
+TOY_FUNCTION = """
+from numba import njit
+from toy.constants import VALUE  # folded into the machine code
+
+
+@njit(cache=True)
+def value():
+    return VALUE
+"""
+TOY_RUN = """
+import sys
+from pathlib import Path
+if sys.argv[1] == "keyed":
+    from scara_gym.model import compilation
+
+    class Locator(compilation.KeyedInTreeLocator):
+        package_dir = Path(sys.argv[2]).resolve()
+        sources = ("constants.py", "function.py")
+
+    compilation.install_locators(Locator)
+from toy.function import value
+print(value())
+"""
+
+
+@pytest.mark.parametrize("mode", ["keyed", "plain numba"])
+def test_stale_compiled_code_cannot_run(tmp_path, mode):
+    """An edit to a constant that a compiled function folds in from another file: numba alone
+    keeps running the stale machine code; the keyed cache recompiles."""
+    toy = tmp_path / "toy"
+    toy.mkdir()
+    (toy / "__init__.py").write_text("")
+    (toy / "function.py").write_text(TOY_FUNCTION)
+
+    def run(value):
+        (toy / "constants.py").write_text(TOY_CONSTANTS.format(value=value))
+        env = {**os.environ, "PYTHONPATH": f"{tmp_path}{os.pathsep}{ROOT}"}
+        env.pop("NUMBA_CACHE_DIR", None)
+        out = subprocess.run([sys.executable, "-c", TOY_RUN, mode.split()[0], str(toy)], env=env,
+                             capture_output=True, text=True, check=True, cwd=tmp_path)
+        return int(out.stdout.strip())
+
+    assert run(1) == 1
+    assert any((toy / "__pycache__").glob("function.value-*.nbi"))  # cached on disk
+    if mode == "keyed":
+        assert run(2) == 2
+    else:
+        assert run(2) == 1  # the stale machine code ran: what the keyed cache prevents
+
+
+def test_version_command(capsys):
+    from scara_gym.benchmark.cli import main
+
+    with pytest.raises(SystemExit) as exit_info:
+        main(["--version"])
+    assert exit_info.value.code == 0
+    assert scara_gym.__version__ in capsys.readouterr().out
+
+
+def _tree_digest(folder: Path) -> str:
+    sha = hashlib.sha256()
+    for path in sorted(folder.rglob("*")):
+        if path.is_file():
+            sha.update(str(path.relative_to(folder)).encode() + path.read_bytes())
+    return sha.hexdigest()
+
+
+@pytest.mark.slow
+def test_a_non_editable_install_works_outside_the_clone(tmp_path):
+    """pip install (not -e) into a folder, then from a folder outside the clone: evaluation of a
+    shipped model by name and a tiny training run. Training writes under runs/, evaluation
+    under its --out only, and the shipped models stay as they were."""
+    pytest.importorskip("stable_baselines3")
+    site = tmp_path / "site"
+    subprocess.run([sys.executable, "-m", "pip", "install", "-q", "--no-deps", "--target", str(site), str(ROOT)],
+                   check=True, capture_output=True, text=True)
+    shipped = site / "agents" / "models"
+    assert (shipped / "ppo_pd" / "model.zip").exists() and (site / "agents" / "hyperparams" / "ppo.yml").exists()
+    before = _tree_digest(shipped)
+    work = tmp_path / "elsewhere"
+    work.mkdir()
+    env = {**os.environ, "PYTHONPATH": str(site)}
+    env.pop("NUMBA_CACHE_DIR", None)
+
+    def run(*args):
+        return subprocess.run([sys.executable, *args], cwd=work, env=env, capture_output=True, text=True)
+
+    where = run("-c", "import agents, scara_gym; print(agents.__file__, scara_gym.__file__)")
+    assert where.returncode == 0 and where.stdout.count(str(site)) == 2, where.stdout + where.stderr
+    evaluated = run("-m", "agents.evaluate", "--policies", "pd", "ppo:ppo_pd", "--episodes", "1", "--out", "out")
+    assert evaluated.returncode == 0, evaluated.stderr
+    assert compilation.COMPILE_MESSAGE in evaluated.stderr  # a fresh install compiles, and says so
+    assert "| ppo (ppo_pd) | 1 | 1.0000 | 0.0000 |" in evaluated.stdout
+    assert (work / "out" / "table.md").exists() and (work / "out" / "ppo_pd_results.json").exists()
+    trained = run("-m", "agents.train", "--total-timesteps", "256", "--no-progress-bar", "--n-envs", "2",
+                  "--n-steps", "64", "--batch-size", "64")
+    assert trained.returncode == 0, trained.stderr
+    assert trained.stderr.count(compilation.COMPILE_MESSAGE) <= 1  # the vector env's entry points: once
+    assert (work / "runs" / "ppo_pd" / "model.zip").exists()
+    again = run("-m", "agents.evaluate", "--policies", "ppo:runs/ppo_pd", "--episodes", "1", "--out", "out")
+    assert again.returncode == 0, again.stderr
+    assert compilation.COMPILE_MESSAGE not in again.stderr  # cached on disk by the first run
+    assert sorted(p.name for p in work.iterdir()) == ["out", "runs"]
+    assert _tree_digest(shipped) == before
