@@ -10,6 +10,8 @@ import pytest
 
 import scara_gym  # noqa: F401
 
+pytestmark = pytest.mark.slow  # about 40 s: 22,000 environment steps
+
 CONFIGS = {
     "pd": {"control_mode": "pd", "randomize_target": True},  # collisions
     "pd-free": {"control_mode": "pd", "obstacle": False},  # successes

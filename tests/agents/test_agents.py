@@ -55,6 +55,7 @@ def test_bad_heuristic_arguments():
         DecHeuristic(env, critical_distance=-1.0)
 
 
+@pytest.mark.slow
 def test_tiny_training_run_saves_a_model_that_loads(tmp_path):
     pytest.importorskip("stable_baselines3")
     from agents.ppo import PPOPolicy, load_hyperparams, train
@@ -78,6 +79,7 @@ def shipped_models():
     return sorted(p.parent for p in MODELS.glob("*/results.json"))
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("model_dir", shipped_models(), ids=lambda p: p.name)
 def test_shipped_model_meets_its_reported_success_rate(model_dir):
     """20 seeded episodes reproduce the recorded outcomes of the reported evaluation."""
