@@ -162,6 +162,7 @@ class ScaraEnv(gym.Env):
         self._robot = task.robots[0]
         self._outcome = task.outcomes[0]
         self._obs = task.obs[0]
+        self._reward = task.outcomes["reward"]
         self._needs_reset = True
         self._renderer = None
         self._trace = []
@@ -224,13 +225,13 @@ class ScaraEnv(gym.Env):
         task = self.task
         task.step_robot(0, action)
         info = task.info(0)
-        terminated = bool(task.terminated(self._outcome))
+        terminated = info["is_success"] or (info["collision"] and task.collision_mode == "terminate")
         self._needs_reset = terminated
         if self.render_mode is not None:
             self._trace.append(self._tip())
         if self.render_mode == "human":
             self.render()
-        return self._obs.copy(), self._outcome["reward"].item(), terminated, False, info
+        return self._obs.copy(), float(self._reward[0]), terminated, False, info
 
     # -- helpers -----------------------------------------------------------------------
     def _tip(self) -> tuple[float, float]:
@@ -260,7 +261,7 @@ class ScaraEnv(gym.Env):
     def __getstate__(self):
         state = self.__dict__.copy()
         state["_renderer"] = None
-        for view in ("_robot", "_outcome", "_obs"):  # views into the task's arrays: re-made on load
+        for view in ("_robot", "_outcome", "_obs", "_reward"):  # views into the task's arrays: re-made on load
             del state[view]
         return state
 
@@ -269,3 +270,4 @@ class ScaraEnv(gym.Env):
         self._robot = self.task.robots[0]
         self._outcome = self.task.outcomes[0]
         self._obs = self.task.obs[0]
+        self._reward = self.task.outcomes["reward"]
