@@ -17,12 +17,26 @@ def main(argv: list[str] | None = None) -> int:
     rep.add_argument("--repeats", type=int, default=5, help="timing repeats of task a (best of)")
     bench = commands.add_parser("bench", help="speed figures, measured side by side")
     bench.add_argument("--quick", action="store_true", help="small sizes: a smoke check")
+    accuracy = commands.add_parser("accuracy", help="errors at given tolerances against a tight run of the same env")
+    accuracy.add_argument("--episodes", type=int, default=200, help="random episodes (default 200)")
+    accuracy.add_argument("--seed", type=int, default=0, help="seed of the episode plans")
+    accuracy.add_argument("--rtol", type=float, default=1e-5, help="relative tolerance under test")
+    accuracy.add_argument("--atol", type=float, default=1e-6, help="absolute tolerance under test")
     args = parser.parse_args(argv)
     if args.command == "reproduce":
         if args.repeats < 1:
             parser.error(f"--repeats must be >= 1, got {args.repeats}")
         from scara_gym.benchmark.reproduce import reproduce
         reproduce(out=args.out, repeats=args.repeats)
+    elif args.command == "accuracy":
+        if args.episodes < 1:
+            parser.error(f"--episodes must be >= 1, got {args.episodes}")
+        for name in ("rtol", "atol"):
+            value = getattr(args, name)
+            if not 0 < value < 1:
+                parser.error(f"--{name} must be in (0, 1), got {value}")
+        from scara_gym.benchmark.accuracy import main as accuracy_main
+        accuracy_main(args.episodes, args.seed, args.rtol, args.atol)
     elif args.command == "bench":
         from scara_gym.benchmark.bench import main as bench_main
         bench_main(quick=args.quick)

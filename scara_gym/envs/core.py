@@ -22,10 +22,10 @@ import numpy as np
 from numba import njit, prange
 
 from scara_gym.model.compilation import JIT
-from scara_gym.model.dynamics import pd_voltage, tip_position, voltage_limit, voltages
+from scara_gym.model.dynamics import applied_voltages, pd_voltage, tip_position, voltage_limit
 from scara_gym.model.integrator import initial_modes, integrate
 from scara_gym.model.records import (
-    CURRENT, ENERGY, EV_COLLISION, EV_TARGET_IN, F8, I8, Q, RATE, STATUS_BAD_ACTION, field_offset,
+    CURRENT, ENERGY, F8, I8, Q, RATE, STATUS_BAD_ACTION, field_offset,
 )
 
 F4 = np.float32
@@ -108,17 +108,13 @@ def control_step(robot, p, config, task, log, outcome):
     x = robot.x
     t = robot.t
     distance_before = outcome.distance
-    robot.n_events = 0
+    robot.n_events = robot.n_collisions = 0
+    robot.reach_time = math.nan
     energy_before = x[ENERGY]
     status = integrate(robot, p, config, t + task.control_dt, log, None)
     t_new = robot.t
-    collisions = 0
-    reach_time = math.nan
-    for i in range(min(robot.n_events, log.shape[0])):
-        if log[i].code == EV_COLLISION:
-            collisions += 1
-        elif log[i].code == EV_TARGET_IN and math.isnan(reach_time):
-            reach_time = log[i].time
+    collisions = robot.n_collisions  # counted by the integrator: a full event log loses none
+    reach_time = robot.reach_time
     reached = not math.isnan(reach_time)
     distance = scaled_distance(x, p)
     outcome.progress = task.progress_weight * (distance_before - distance)
@@ -140,7 +136,7 @@ def control_step(robot, p, config, task, log, outcome):
     outcome.status = status
     outcome.episode_steps += 1
     outcome.episode_collisions += collisions
-    voltages(x, robot, p, config, outcome.voltage)
+    applied_voltages(x, robot, p, config, outcome.voltage)
     outcome.tip[0], outcome.tip[1], _ = tip_position(x[Q], x[Q + 1], x[Q + 2], p)
     return status
 

@@ -150,7 +150,8 @@ class ScaraTask:
                  target=None, start=None, randomize_target: bool = False,
                  reward_weights: RewardWeights | dict | None = None, control_dt: float = 0.01,
                  time_limit: float = 3.0, params: ScaraParams | dict | None = None,
-                 rtol: float = 1e-5, atol: float = 1e-6, num_robots: int = 1) -> None:
+                 rtol: float = 1e-5, atol: float = 1e-6, exact_switches: bool = False,
+                 num_robots: int = 1) -> None:
         if control_mode not in CONTROL_MODES:
             raise ValueError(f"control_mode must be one of {CONTROL_MODES}, got {control_mode!r}")
         if collision not in COLLISION_MODES:
@@ -167,6 +168,9 @@ class ScaraTask:
         self.randomize_target = bool(randomize_target)
         self.rtol = check_tolerance("rtol", rtol)
         self.atol = check_tolerance("atol", atol)
+        if not isinstance(exact_switches, (bool, np.bool_)):
+            raise TypeError(f"exact_switches must be True or False, got {exact_switches!r}")
+        self.exact_switches = bool(exact_switches)
         self.default_target = self.check_target(target if target is not None else self.params.task.target, "target")
         self.default_start = check_state("start", start if start is not None else self.params.task.start, 3)
         self.setpoint_center = 0.5 * (SETPOINT_HIGH + SETPOINT_LOW)
@@ -184,6 +188,7 @@ class ScaraTask:
         config["stops"] = stops
         config["max_steps"] = 2_000_000
         config["rtol"], config["atol"] = self.rtol, self.atol
+        config["exact_switches"] = self.exact_switches
         self.task = np.zeros(1, dtype=TASK)
         constants = self.task[0]
         constants["control_dt"], constants["time_limit"] = self.control_dt, self.time_limit

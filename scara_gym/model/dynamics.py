@@ -191,16 +191,58 @@ def is_widened(robot, config):
 
 
 @njit(**JIT_INLINE)
+def pd_linear_voltage(robot, x, p, axis):
+    """P_i (q^_i - q_i) - D_i q_i': the PD law before its saturation."""
+    return p.p_gain[axis] * (robot.command[axis] - x[Q + axis]) - p.d_gain[axis] * x[RATE + axis]
+
+
+@njit(**JIT_INLINE)
+def mode_voltage(x, robot, p, config, axis, limit):
+    """U_i in the robot's hybrid mode. With exact_switches the PD law's saturation is a
+    located mode (robot.saturation), so that the right-hand side is smooth between
+    switches; without, the law is clipped at every evaluation (a kink inside steps)."""
+    if config.control != CONTROL_PD:
+        return robot.command[axis] * limit
+    u = pd_linear_voltage(robot, x, p, axis)
+    if config.exact_switches:
+        s = robot.saturation[axis]
+        return u if s == 0 else s * limit
+    return min(max(u, -limit), limit)
+
+
+@njit(**JIT_INLINE)
 def voltages(x, robot, p, config, out):
-    """Armature voltages for the configured control: PD law or commanded fraction of the limit."""
+    """Armature voltages in the robot's mode: PD law or commanded fraction of the limit."""
+    widened = is_widened(robot, config)
+    for axis in range(3):
+        out[axis] = mode_voltage(x, robot, p, config, axis, voltage_limit(p, axis, widened))
+    return out
+
+
+@njit(**JIT_INLINE)
+def applied_voltages(x, robot, p, config, out):
+    """voltages() as reported: within +-limit also where a located saturation switch lies
+    a rounding error away (the mode's linear law may then exceed the limit by ~1e-9 V)."""
     widened = is_widened(robot, config)
     for axis in range(3):
         limit = voltage_limit(p, axis, widened)
-        if config.control == CONTROL_PD:
-            out[axis] = pd_voltage(robot.command[axis], x[Q + axis], x[RATE + axis], p, axis, limit)
-        else:
-            out[axis] = robot.command[axis] * limit
+        out[axis] = min(max(mode_voltage(x, robot, p, config, axis, limit), -limit), limit)
     return out
+
+
+@njit(**JIT)
+def settle_saturation(x, robot, p, config):
+    """The PD saturation modes the state implies (exact_switches; else all linear): at the
+    start of every call, since a new set-point moves the law, and after every event."""
+    exact_pd = config.exact_switches and config.control == CONTROL_PD
+    widened = is_widened(robot, config)
+    for axis in range(3):
+        mode = 0
+        if exact_pd:
+            limit = voltage_limit(p, axis, widened)
+            u = pd_linear_voltage(robot, x, p, axis)
+            mode = 1 if u > limit else (-1 if u < -limit else 0)
+        robot.saturation[axis] = mode
 
 
 @njit(**JIT_INLINE)
@@ -211,20 +253,24 @@ def derivative(x, robot, p, config, out, volts):
     only the kinematic rows are scaled (q1' = dec v1, q2' = dec v2); the mechanics,
     back-EMF and PD damping keep using the rate states v.
 
-    The hot loop of every simulation: one pass over the axes with the voltage law,
-    eq. 13 and T_i = kT_i u_i I_i written out (the same arithmetic as pd_voltage,
+    The hot loop of every simulation: one pass over the axes with the voltage law
+    (mode_voltage), eq. 13 and T_i = kT_i u_i I_i written out (the same arithmetic as pd_voltage,
     free_current_rate and joint_torque, which the tests compare it with), then the
     mechanics in the configured form.
     """
     widened = is_widened(robot, config)
     pd = config.control == CONTROL_PD
+    exact = config.exact_switches
     power = 0.0
     t1 = t2 = t3 = 0.0
     for axis in range(3):
         limit = p.wide_voltage_limit[axis] if widened else p.voltage_limit[axis]
         if pd:
             u = p.p_gain[axis] * (robot.command[axis] - x[Q + axis]) - p.d_gain[axis] * x[RATE + axis]
-            u = min(max(u, -limit), limit)
+            if not exact:
+                u = min(max(u, -limit), limit)
+            elif robot.saturation[axis] != 0:
+                u = robot.saturation[axis] * limit
         else:
             u = robot.command[axis] * limit
         volts[axis] = u

@@ -29,15 +29,16 @@ from numba import njit
 
 from scara_gym.model.compilation import JIT, JIT_INLINE
 from scara_gym.model.dynamics import (
-    derivative, free_current_rate, is_critical_state, is_inside_target, target_error, tip_position,
+    applied_voltages, derivative, free_current_rate, is_critical_state, is_inside_target,
+    is_widened, pd_linear_voltage, settle_saturation, target_error, tip_position, voltage_limit,
     voltages,
 )
 from scara_gym.model.records import (
-    CRIT_FORCED, CRIT_SWITCH, CURRENT, E_CRITICAL, E_HEIGHT, E_SIDE, E_TARGET, EV_ABOVE, EV_BELOW,
-    EV_COLLISION, EV_CRITICAL_OFF, EV_CRITICAL_ON, EV_LIMIT_OFF, EV_LIMIT_ON, EV_TARGET_IN,
-    EV_TARGET_OUT, EV_WALL_CROSS, N_EVENTS, N_STATE, Q, RATE, STATUS_END, STATUS_MAX_STEPS,
-    STATUS_NOT_FINITE, STATUS_STEP_UNDERFLOW, STATUS_STOPPED, STOP_ABOVE, STOP_COLLISION,
-    STOP_CRITICAL, STOP_TARGET,
+    CONTROL_PD, CRIT_FORCED, CRIT_SWITCH, CURRENT, E_CRITICAL, E_HEIGHT, E_SAT1, E_SIDE, E_TARGET,
+    EV_ABOVE, EV_BELOW, EV_COLLISION, EV_CRITICAL_OFF, EV_CRITICAL_ON, EV_LIMIT_OFF, EV_LIMIT_ON,
+    EV_SATURATION_OFF, EV_SATURATION_ON, EV_TARGET_IN, EV_TARGET_OUT, EV_WALL_CROSS, N_EVENTS,
+    N_STATE, Q, RATE, STATUS_END, STATUS_MAX_STEPS, STATUS_NOT_FINITE, STATUS_STEP_UNDERFLOW,
+    STATUS_STOPPED, STOP_ABOVE, STOP_COLLISION, STOP_CRITICAL, STOP_TARGET,
 )
 
 # Dormand-Prince 5(4) tableau and Shampine's dense output, as in scipy.integrate.RK45
@@ -94,6 +95,16 @@ def event_values(x, robot, p, config, volts, g):
     g[E_HEIGHT] = (x[Q + 2] - p.wall_height) if robot.above == 1 else (p.wall_height - x[Q + 2])
     error = target_error(x, p)
     g[E_TARGET] = (p.accuracy - error) if robot.inside == 1 else (error - p.accuracy)
+    exact_pd = config.exact_switches and config.control == CONTROL_PD
+    widened = is_widened(robot, config)
+    for axis in range(3):
+        if exact_pd:
+            limit = voltage_limit(p, axis, widened)
+            u = pd_linear_voltage(robot, x, p, axis)
+            mode = robot.saturation[axis]
+            g[E_SAT1 + axis] = (limit - abs(u)) if mode == 0 else (mode * u - limit)
+        else:
+            g[E_SAT1 + axis] = 1.0
     return g
 
 
@@ -164,6 +175,14 @@ def handle_event(k, t, x, robot, p, config, log):
         else:
             robot.hold[k] = 0
             code = EV_LIMIT_OFF
+    elif k >= E_SAT1:
+        axis = k - E_SAT1
+        if robot.saturation[axis] == 0:
+            robot.saturation[axis] = 1 if pd_linear_voltage(robot, x, p, axis) > 0.0 else -1
+            code = EV_SATURATION_ON
+        else:
+            robot.saturation[axis] = 0
+            code = EV_SATURATION_OFF
     elif k == E_CRITICAL:
         robot.critical = 1 - robot.critical
         code = EV_CRITICAL_ON if robot.critical == 1 else EV_CRITICAL_OFF
@@ -172,6 +191,8 @@ def handle_event(k, t, x, robot, p, config, log):
         robot.side = -robot.side
         code = EV_COLLISION if x[Q + 2] < p.wall_height else EV_WALL_CROSS
         stop = code == EV_COLLISION and (stop_mask & STOP_COLLISION) != 0
+        if code == EV_COLLISION:
+            robot.n_collisions += 1
     elif k == E_HEIGHT:
         robot.above = 1 - robot.above
         code = EV_ABOVE if robot.above == 1 else EV_BELOW
@@ -180,6 +201,8 @@ def handle_event(k, t, x, robot, p, config, log):
         robot.inside = 1 - robot.inside
         code = EV_TARGET_IN if robot.inside == 1 else EV_TARGET_OUT
         stop = code == EV_TARGET_IN and (stop_mask & STOP_TARGET) != 0
+        if code == EV_TARGET_IN and math.isnan(robot.reach_time):
+            robot.reach_time = t
     log_event(t, code, axis, robot, log)
     if stop:
         robot.stop_event = code
@@ -216,6 +239,247 @@ def dense_output(x, h, k, theta, out):
     return out
 
 
+def _dense_slope() -> float:
+    """K with |d/dtheta of the dense output| <= K h max_s |k_s| on [0, 1]: the sum over the
+    stages of the largest Bernstein coefficient of each weight's derivative (a cubic)."""
+    total = 0.0
+    for p0, p1, p2, p3 in RK_P:
+        total += max(abs(p0), abs(p0 + 2 * p1 / 3), abs(p0 + (4 * p1 + 3 * p2) / 3),
+                     abs(p0 + 2 * p1 + 3 * p2 + 4 * p3))
+    return float(total)
+
+
+DENSE_SLOPE = _dense_slope()
+SEARCH_RESOLUTION = 1e-10  # [s] a mode switch that starts and ends within less may go unseen
+STACK_DEPTH = 64           # intervals of the in-step search (it needs about log2(h / 1e-10) + 1)
+
+
+@njit(**JIT)
+def dense_coefficients(h, k, coeffs):
+    """coeffs[j, i]: the coefficient of theta^(j+1) in the dense output of state i (a quartic
+    in theta with constant term x_i), for the positions, rates and currents."""
+    for i in range(CURRENT + 3):
+        for j in range(4):
+            coeffs[j, i] = h * (k[0, i] * RK_P[0, j] + k[2, i] * RK_P[2, j] + k[3, i] * RK_P[3, j]
+                                + k[4, i] * RK_P[4, j] + k[5, i] * RK_P[5, j] + k[6, i] * RK_P[6, j])
+
+
+@njit(**JIT_INLINE)
+def affine_bernstein(g0, i1, c1, i2, c2, coeffs):
+    """Bernstein coefficients b1..b4 (b0 = g0) on [0, 1] of an event function affine in the
+    state: along the step it is the quartic g0 + sum_j (c1 coeffs[j, i1] + c2 coeffs[j, i2])
+    theta^(j+1) (i2 < 0: one term)."""
+    p1 = c1 * coeffs[0, i1] + (c2 * coeffs[0, i2] if i2 >= 0 else 0.0)
+    p2 = c1 * coeffs[1, i1] + (c2 * coeffs[1, i2] if i2 >= 0 else 0.0)
+    p3 = c1 * coeffs[2, i1] + (c2 * coeffs[2, i2] if i2 >= 0 else 0.0)
+    p4 = c1 * coeffs[3, i1] + (c2 * coeffs[3, i2] if i2 >= 0 else 0.0)
+    return (g0 + p1 / 4.0, g0 + p1 / 2.0 + p2 / 6.0, g0 + 0.75 * p1 + p2 / 2.0 + p3 / 4.0,
+            g0 + p1 + p2 + p3 + p4)
+
+
+@njit(**JIT)
+def first_root_affine(g0, i1, c1, i2, c2, coeffs, h, stack, bracket):
+    """Bracket the first root in [0, 1] of an event function affine in the state, given
+    g(0) = g0 >= 0 (see affine_bernstein). Bernstein coefficients bound it on an interval
+    (all >= 0: no root there; one sign change: exactly one root). True with bracket[0:2] =
+    (lo, hi) around the first root; False when there is none, or only a dip shorter than
+    SEARCH_RESOLUTION. The usual case, no root, is decided here without a call."""
+    b1, b2, b3, b4 = affine_bernstein(g0, i1, c1, i2, c2, coeffs)
+    if min(b1, b2, b3, b4) >= 0.0:
+        return False
+    return refine_root_affine(g0, b1, b2, b3, b4, h, stack, bracket)
+
+
+@njit(**JIT_INLINE)
+def affine_root(g0, i1, c1, i2, c2, x, y_new, reach, h, k, coeffs, ready, stack, bracket):
+    """first_root_affine behind a cheaper test: a step over which the event function cannot
+    fall from its end values to zero, by the bound DENSE_SLOPE * reach on its slope, has no
+    root, and needs no dense coefficients (computed once per step when one is needed).
+    Returns (found, ready: the coefficients are computed)."""
+    g1 = g0 + c1 * (y_new[i1] - x[i1]) + (c2 * (y_new[i2] - x[i2]) if i2 >= 0 else 0.0)
+    slope = DENSE_SLOPE * (abs(c1) * reach[i1] + (abs(c2) * reach[i2] if i2 >= 0 else 0.0))
+    if g1 >= 0.0 and g0 + g1 >= slope:
+        return False, ready
+    return slow_root_affine(g0, i1, c1, i2, c2, h, k, coeffs, ready, stack, bracket), True
+
+
+@njit(**JIT)
+def slow_root_affine(g0, i1, c1, i2, c2, h, k, coeffs, ready, stack, bracket):
+    """affine_root past its cheap test: one call, out of line."""
+    if not ready:
+        dense_coefficients(h, k, coeffs)
+    return first_root_affine(g0, i1, c1, i2, c2, coeffs, h, stack, bracket)
+
+
+@njit(**JIT)
+def refine_root_affine(g0, b1, b2, b3, b4, h, stack, bracket):
+    """first_root_affine's search: de Casteljau halving of the undecided intervals, leftmost
+    first."""
+    top = 0
+    stack[0, 0], stack[0, 1] = 0.0, 1.0  # interval start and width in theta, then its Bernstein coefficients
+    stack[0, 2], stack[0, 3], stack[0, 4], stack[0, 5], stack[0, 6] = g0, b1, b2, b3, b4
+    while top >= 0:
+        start, width = stack[top, 0], stack[top, 1]
+        b0, b1, b2, b3, b4 = stack[top, 2], stack[top, 3], stack[top, 4], stack[top, 5], stack[top, 6]
+        top -= 1
+        if min(b1, b2, b3, b4) >= 0.0:
+            continue
+        changes = ((b0 >= 0.0) != (b1 >= 0.0)) + ((b1 >= 0.0) != (b2 >= 0.0)) \
+            + ((b2 >= 0.0) != (b3 >= 0.0)) + ((b3 >= 0.0) != (b4 >= 0.0))
+        if b4 < 0.0 and (changes == 1 or width * h <= SEARCH_RESOLUTION):
+            bracket[0], bracket[1] = start, start + width
+            return True
+        if width * h <= SEARCH_RESOLUTION or top + 2 >= stack.shape[0]:
+            continue
+        # de Casteljau at the middle; the right half goes below the left one on the stack
+        l1, m1, n1, o1 = 0.5 * (b0 + b1), 0.5 * (b1 + b2), 0.5 * (b2 + b3), 0.5 * (b3 + b4)
+        l2, m2, n2 = 0.5 * (l1 + m1), 0.5 * (m1 + n1), 0.5 * (n1 + o1)
+        l3, m3 = 0.5 * (l2 + m2), 0.5 * (m2 + n2)
+        l4 = 0.5 * (l3 + m3)
+        half = 0.5 * width
+        stack[top + 1, 0], stack[top + 1, 1] = start + half, half
+        stack[top + 1, 2], stack[top + 1, 3], stack[top + 1, 4] = l4, m3, n2
+        stack[top + 1, 5], stack[top + 1, 6] = o1, b4
+        stack[top + 2, 0], stack[top + 2, 1] = start, half
+        stack[top + 2, 2], stack[top + 2, 3], stack[top + 2, 4] = b0, l1, l2
+        stack[top + 2, 5], stack[top + 2, 6] = l3, l4
+        top += 2
+    return False
+
+
+@njit(**JIT)
+def first_root_lipschitz(e, g0, g1, slope, x, h, k, robot, p, config, volts, g_try, x_try, stack, bracket):
+    """Bracket the first root in [0, 1] of event function e, not affine in the state, given
+    g(0) = g0 >= 0, g(1) = g1 and |dg/dtheta| <= slope: an interval whose end values a, b
+    satisfy a + b >= slope * width holds no root; the others are halved, leftmost first, with
+    g evaluated on the dense output. True with bracket[0:4] = (lo, hi, g(lo), g(hi))."""
+    top = 0
+    stack[0, 0], stack[0, 1], stack[0, 2], stack[0, 3] = 0.0, 1.0, g0, g1
+    while top >= 0:
+        lo, hi, g_lo, g_hi = stack[top, 0], stack[top, 1], stack[top, 2], stack[top, 3]
+        top -= 1
+        if g_hi < 0.0:
+            bracket[0], bracket[1], bracket[2], bracket[3] = lo, hi, g_lo, g_hi
+            return True
+        if g_lo + g_hi >= slope * (hi - lo) or (hi - lo) * h <= SEARCH_RESOLUTION \
+                or top + 2 >= stack.shape[0]:
+            continue
+        mid = 0.5 * (lo + hi)
+        dense_output(x, h, k, mid, x_try)
+        event_values(x_try, robot, p, config, volts, g_try)
+        g_mid = g_try[e]
+        stack[top + 1, 0], stack[top + 1, 1], stack[top + 1, 2], stack[top + 1, 3] = mid, hi, g_mid, g_hi
+        stack[top + 2, 0], stack[top + 2, 1], stack[top + 2, 2], stack[top + 2, 3] = lo, mid, g_lo, g_mid
+        top += 2
+    return False
+
+
+@njit(**JIT)
+def search_switches(x, y_new, h, k, robot, p, config, volts, g_old, g_new, g_try, x_try, coeffs, reach,
+                    stack, bracket, brackets, triggered):
+    """exact_switches: find every mode switch inside the accepted step [t, t + h], including
+    one that starts and ends inside it, and bracket its first root for the Illinois
+    refinement (brackets rows: lo, hi, g(lo), g(hi), in theta). Switches whose event
+    function is affine in the state (current limits, PD saturation, wall height) are
+    bracketed exactly on the dense output's quartic; the others (critical, wall side,
+    target) with a bound on their slope. True when any switch was found."""
+    for i in range(CURRENT + 3):  # h max_s |k_s|: with DENSE_SLOPE, a bound on each state's slope
+        reach[i] = abs(k[0, i])
+    for stage in range(2, 7):
+        for i in range(CURRENT + 3):
+            reach[i] = max(reach[i], abs(k[stage, i]))
+    for i in range(CURRENT + 3):
+        reach[i] *= h
+    ready = False  # dense coefficients computed
+    pd = config.control == CONTROL_PD
+    widened = is_widened(robot, config)
+    any_event = False
+    for e in range(N_EVENTS):
+        triggered[e] = False
+        if g_old[e] < 0.0:
+            continue
+        affine = True
+        found = False
+        if e < 3 or e >= E_SAT1:
+            axis = e if e < 3 else e - E_SAT1
+            iq, iv, ii = Q + axis, RATE + axis, CURRENT + axis
+            gain_p, gain_d = p.p_gain[axis], p.d_gain[axis]
+            saturated = robot.saturation[axis] != 0
+            if e < 3 and robot.hold[axis] == 0:  # Imax - |I|: two affine pieces
+                imax = p.current_limit[axis]
+                found, ready = affine_root(imax - x[ii], ii, -1.0, -1, 0.0, x, y_new, reach, h, k, coeffs, ready,
+                                           stack, bracket)
+                if not found:
+                    found, ready = affine_root(imax + x[ii], ii, 1.0, -1, 0.0, x, y_new, reach, h, k, coeffs,
+                                               ready, stack, bracket)
+            elif e < 3:  # held: hold * I' of the free dynamics, through the voltage and the back-EMF
+                s = robot.hold[axis]
+                emf = p.torque_constant[axis] * p.gear_ratio[axis]
+                inductance = p.inductance[axis]
+                if pd and not saturated:
+                    found, ready = affine_root(g_old[e], iq, -s * gain_p / inductance, iv,
+                                               -s * (gain_d + emf) / inductance, x, y_new, reach, h, k, coeffs,
+                                               ready, stack, bracket)
+                else:
+                    found, ready = affine_root(g_old[e], iv, -s * emf / inductance, -1, 0.0, x, y_new, reach, h,
+                                               k, coeffs, ready, stack, bracket)
+            elif pd:  # PD saturation, u = P (q^ - q) - D q'
+                if not saturated:  # limit - |u|: two affine pieces
+                    limit = voltage_limit(p, axis, widened)
+                    u = pd_linear_voltage(robot, x, p, axis)
+                    found, ready = affine_root(limit - u, iq, gain_p, iv, gain_d, x, y_new, reach, h, k, coeffs,
+                                               ready, stack, bracket)
+                    if not found:
+                        found, ready = affine_root(limit + u, iq, -gain_p, iv, -gain_d, x, y_new, reach, h, k,
+                                                   coeffs, ready, stack, bracket)
+                else:
+                    s = robot.saturation[axis]
+                    found, ready = affine_root(g_old[e], iq, -s * gain_p, iv, -s * gain_d, x, y_new, reach, h, k,
+                                               coeffs, ready, stack, bracket)
+        elif e == E_HEIGHT:
+            found, ready = affine_root(g_old[e], Q + 2, 1.0 if robot.above == 1 else -1.0, -1, 0.0, x, y_new,
+                                       reach, h, k, coeffs, ready, stack, bracket)
+        elif (e == E_CRITICAL and config.critical_rule != CRIT_SWITCH) or (e == E_SIDE and not config.wall):
+            continue  # constant: the mode cannot switch
+        else:
+            affine = False
+            d1, d2, d3 = (DENSE_SLOPE * reach[Q], DENSE_SLOPE * reach[Q + 1], DENSE_SLOPE * reach[Q + 2])
+            tip_x_slope = p.link1_length * d1 + p.link2_length * (d1 + d2)
+            if e == E_SIDE:
+                slope = tip_x_slope
+            elif e == E_CRITICAL:
+                slope = max(tip_x_slope, d3)
+            else:
+                slope = max(d1, d2, d3)
+            if g_new[e] < 0.0 or g_old[e] + g_new[e] < slope:
+                found = first_root_lipschitz(e, g_old[e], g_new[e], slope, x, h, k, robot, p, config, volts,
+                                             g_try, x_try, stack, bracket)
+        if not found:
+            continue
+        lo, hi = bracket[0], bracket[1]
+        if affine:  # the event function's own values at the bracket's ends
+            if hi >= 1.0:
+                g_hi = g_new[e]
+            else:
+                dense_output(x, h, k, hi, x_try)
+                g_hi = event_values(x_try, robot, p, config, volts, g_try)[e]
+            if lo <= 0.0:
+                g_lo = g_old[e]
+            else:
+                dense_output(x, h, k, lo, x_try)
+                g_lo = event_values(x_try, robot, p, config, volts, g_try)[e]
+            if g_hi >= 0.0:
+                continue  # a root the polynomial has and the rounding of g does not
+            if g_lo < 0.0:
+                lo, g_lo = 0.0, g_old[e]
+        else:
+            g_lo, g_hi = bracket[2], bracket[3]
+        brackets[0, e], brackets[1, e], brackets[2, e], brackets[3, e] = lo, hi, g_lo, g_hi
+        triggered[e] = True
+        any_event = True
+    return any_event
+
+
 @njit(**JIT)
 def initial_step(x, f0, robot, p, config, volts, scale, y1, f1):
     """Hairer's starting step, as scipy's select_initial_step (order 5); scale, y1 and f1
@@ -244,7 +508,7 @@ def initial_step(x, f0, robot, p, config, volts, scale, y1, f1):
 def record(t, x, robot, p, config, volts, samples):
     n = robot.n_samples
     if n < samples.shape[0]:
-        voltages(x, robot, p, config, volts)
+        applied_voltages(x, robot, p, config, volts)
         sample = samples[n]
         sample.t = t
         sample.x[:] = x
@@ -262,23 +526,29 @@ def integrate(robot, p, config, t_end, log, samples):
     reached.
     """
     n = N_STATE
-    work = np.empty((12, n))  # one allocation per call: this runs once per control step
+    work = np.empty((17, n))  # the allocations of a call (it runs once per control step), all fixed-size
     k = work[:7]
     y_new = work[7]
     y_stage = work[8]
     x_event = work[9]
     scale = work[10]
     err_vec = work[11]
-    small = np.empty((4, N_EVENTS))
-    volts = small[3, :3]
+    coeffs = work[12:16]
+    reach = work[16]
+    small = np.empty((9, N_EVENTS))
     g_old = small[0]
     g_new = small[1]
     g_try = small[2]
+    volts = small[3, :3]
+    brackets = small[4:8]  # per event: lo, hi, g(lo), g(hi) in theta
+    bracket = small[8, :4]  # the searches' result
+    stack = np.empty((STACK_DEPTH, 7))
     triggered = np.zeros(N_EVENTS, dtype=np.bool_)
     x = robot.x
     rtol, atol = config.rtol, config.atol
 
     t = robot.t
+    settle_saturation(x, robot, p, config)
     settle_holds(t, x, robot, p, config, volts, log)
     if samples is not None and robot.n_samples == 0:
         record(t, x, robot, p, config, volts, samples)
@@ -347,10 +617,16 @@ def integrate(robot, p, config, t_end, log, samples):
         factor = MAX_FACTOR if err == 0.0 else min(MAX_FACTOR, SAFETY * err ** -0.2)
 
         event_values(y_new, robot, p, config, volts, g_new)
-        any_event = False
-        for e in range(N_EVENTS):
-            triggered[e] = g_old[e] >= 0.0 and g_new[e] < 0.0
-            any_event = any_event or triggered[e]
+        if config.exact_switches:
+            any_event = search_switches(x, y_new, h_step, k, robot, p, config, volts, g_old, g_new, g_try,
+                                        x_event, coeffs, reach, stack, bracket, brackets, triggered)
+        else:  # sign changes at the step's ends only
+            any_event = False
+            for e in range(N_EVENTS):
+                triggered[e] = g_old[e] >= 0.0 and g_new[e] < 0.0
+                if triggered[e]:
+                    any_event = True
+                    brackets[0, e], brackets[1, e], brackets[2, e], brackets[3, e] = 0.0, 1.0, g_old[e], g_new[e]
         if not any_event:
             t = t_end if last else t + h_step
             x[:] = y_new
@@ -366,8 +642,7 @@ def integrate(robot, p, config, t_end, log, samples):
         for e in range(N_EVENTS):
             if not triggered[e]:
                 continue
-            lo, hi = 0.0, 1.0
-            g_lo, g_hi = g_old[e], g_new[e]
+            lo, hi, g_lo, g_hi = brackets[0, e], brackets[1, e], brackets[2, e], brackets[3, e]
             side = 0
             for _ in range(200):
                 if (hi - lo) * h_step <= EVENT_TIME_TOL:
@@ -400,6 +675,7 @@ def integrate(robot, p, config, t_end, log, samples):
         for e in range(N_EVENTS):
             if triggered[e] and g_try[e] < 0.0:
                 stop = handle_event(e, t, x, robot, p, config, log) or stop
+        settle_saturation(x, robot, p, config)  # the critical switch moves the PD law's bounds
         settle_holds(t, x, robot, p, config, volts, log)
         if samples is not None:
             record(t, x, robot, p, config, volts, samples)

@@ -65,6 +65,7 @@ CONFIG = np.dtype([
     ("wall", B1),           # track crossings of the wall plane (collisions)
     ("max_steps", I8),      # accepted + rejected step budget of one call
     ("rtol", F8), ("atol", F8),  # error tolerances, scipy's meaning
+    ("exact_switches", B1),  # the PD saturation a located mode, every switch searched inside steps
 ])
 
 ROBOT = np.dtype([
@@ -73,6 +74,7 @@ ROBOT = np.dtype([
     ("command", F8, 3),     # PD set-point or U / limit, held over a call
     # hybrid modes
     ("hold", I8, 3),        # -1 / 0 / +1: current held at -Imax, free, held at +Imax
+    ("saturation", I8, 3),  # -1 / 0 / +1: PD voltage at -limit, linear, at +limit (exact_switches)
     ("critical", I8),       # 0/1
     ("side", I8),           # sign of x_tip - x_obs
     ("above", I8),          # 1 while q3 >= h_obs
@@ -83,6 +85,9 @@ ROBOT = np.dtype([
     # counters
     ("n_samples", I8), ("n_events", I8), ("n_rhs", I8), ("n_steps", I8), ("n_rejected", I8),
     ("stop_event", I8),     # EV_* code of the stop event of the last call
+    # what must not be lost to a full event log; reset by the caller, like n_events
+    ("n_collisions", I8),   # EV_COLLISION events
+    ("reach_time", F8),     # instant of the first EV_TARGET_IN [s]; NaN until one happens
 ])
 
 EVENT = np.dtype([("time", F8), ("code", I8), ("axis", I8)])  # axis -1: not an axis event
@@ -98,8 +103,8 @@ STOP_CRITICAL = 4     # became critical
 STOP_ABOVE = 8        # q3 rose to h_obs
 
 # event functions (index into the g vector; positive while the mode holds)
-E_HOLD1, E_HOLD2, E_HOLD3, E_CRITICAL, E_SIDE, E_HEIGHT, E_TARGET = range(7)
-N_EVENTS = 7
+E_HOLD1, E_HOLD2, E_HOLD3, E_CRITICAL, E_SIDE, E_HEIGHT, E_TARGET, E_SAT1, E_SAT2, E_SAT3 = range(10)
+N_EVENTS = 10
 
 # codes written to the event log
 EV_LIMIT_ON = 1       # axis = 0..2; current reached +-Imax and is held
@@ -112,12 +117,15 @@ EV_ABOVE = 7          # q3 reached h_obs
 EV_BELOW = 8
 EV_TARGET_IN = 9
 EV_TARGET_OUT = 10
+EV_SATURATION_ON = 11  # axis = 0..2; the PD voltage reached +-limit (exact_switches)
+EV_SATURATION_OFF = 12
 EVENT_NAMES = {
     EV_LIMIT_ON: "current_limit_on", EV_LIMIT_OFF: "current_limit_off",
     EV_CRITICAL_ON: "critical_on", EV_CRITICAL_OFF: "critical_off",
     EV_WALL_CROSS: "wall_cross", EV_COLLISION: "collision",
     EV_ABOVE: "above_wall", EV_BELOW: "below_wall",
     EV_TARGET_IN: "target_reached", EV_TARGET_OUT: "target_left",
+    EV_SATURATION_ON: "voltage_saturation_on", EV_SATURATION_OFF: "voltage_saturation_off",
 }
 
 # return status of integrate() and of the environment's compiled step

@@ -160,6 +160,10 @@ class Simulator:
         wall: locate crossings of the wall plane (collisions).
         stop: stop events, a subset of ("target", "collision", "critical", "above").
         rtol, atol: error tolerances, with scipy's meaning.
+        exact_switches: the PD saturation a located mode switch, and every mode switch
+            searched inside each step (one that starts and ends inside a step is found);
+            False (the default, the behaviour of 0.1 and 0.2): switches are seen at the ends
+            of steps, and the saturation is a kink left to step-size control.
         max_step: largest integration step [s].
         record: keep samples (capacity); 0 for none.
     """
@@ -168,8 +172,8 @@ class Simulator:
                  control: str = "pd", critical: str = "off", widen: bool = False,
                  decelerate: bool = False, wall: bool = False, stop: Sequence[str] = ("target",),
                  rtol: float = REFERENCE_RTOL, atol: float = REFERENCE_ATOL,
-                 max_step: float = 0.01, max_steps: int = 2_000_000, record: int = 200_000,
-                 max_events: int = 10_000) -> None:
+                 exact_switches: bool = False, max_step: float = 0.01, max_steps: int = 2_000_000,
+                 record: int = 200_000, max_events: int = 10_000) -> None:
         if not isinstance(params, ScaraParams):
             raise TypeError(f"params must be a ScaraParams, got {type(params).__name__}")
         self.params = params
@@ -189,6 +193,7 @@ class Simulator:
         config["max_steps"] = int(max_steps)
         config["rtol"] = self.rtol = check_tolerance("rtol", rtol)
         config["atol"] = self.atol = check_tolerance("atol", atol)
+        config["exact_switches"] = bool(exact_switches)
         if not (np.isfinite(max_step) and max_step > 0):
             raise ValueError(f"max_step must be a finite number > 0 [s], got {max_step!r}")
         self.robots = np.zeros(1, dtype=R.ROBOT)
@@ -218,8 +223,9 @@ class Simulator:
             robot["command"] = check_state("command", command, 3)
         start(self.robots, self.p, self.config)
         robot["step_size"] = 0.0
-        for counter in ("n_samples", "n_events", "n_rhs", "n_steps", "n_rejected", "stop_event"):
+        for counter in ("n_samples", "n_events", "n_rhs", "n_steps", "n_rejected", "stop_event", "n_collisions"):
             robot[counter] = 0
+        robot["reach_time"] = np.nan
 
     def advance(self, t_end: float, command=None) -> int:
         """Integrate to t_end or the first stop event; returns the kernel status."""
@@ -238,7 +244,12 @@ class Simulator:
         return bool(self.robot["critical"])
 
     def events(self, since: int = 0) -> list[Event]:
-        n = min(int(self.robot["n_events"]), len(self.log))
+        """The logged events; raises when the log overflowed (the stop status and the
+        robot's counters are complete either way)."""
+        n = int(self.robot["n_events"])
+        if n > len(self.log):
+            raise RuntimeError(f"event log overflowed: {n} events, capacity {len(self.log)}; "
+                               f"raise Simulator(max_events=...)")
         log = self.log[since:n]
         return [Event(float(e["time"]), R.EVENT_NAMES[int(e["code"])],
                       int(e["axis"]) if e["axis"] >= 0 else None) for e in log]

@@ -1,0 +1,77 @@
+"""The accuracy property of ``scara-c11 accuracy`` on a fixed sample: the first eight
+episode plans of its default seed (two of each action program), in CI."""
+
+import numpy as np
+import pytest
+
+from scara_gym.benchmark import accuracy
+
+SAMPLE = accuracy.plans(8, seed=0)
+
+
+@pytest.fixture(scope="module")
+def exact_rows():
+    return [accuracy.compare_episode(plan) for plan in SAMPLE]
+
+
+@pytest.fixture(scope="module")
+def step_end_rows():
+    return [accuracy.compare_episode(plan, exact_switches=False) for plan in SAMPLE]
+
+
+def test_the_sample_covers_every_program_both_modes_and_the_obstacle():
+    assert {plan.program for plan in SAMPLE} == set(accuracy.PROGRAMS)
+    assert {plan.env_kwargs["control_mode"] for plan in SAMPLE} == {"pd", "voltage"}
+    assert {plan.env_kwargs["obstacle"] for plan in SAMPLE} == {True, False}
+
+
+def test_exact_switches_meet_the_targets_at_the_default_tolerances(exact_rows):
+    for row in exact_rows:
+        assert row["unpaired_events"] == 0, row  # every switch of the tight run is found, no other
+        assert row["ended_together"], row
+        assert row["q"] <= accuracy.TARGETS["q"], row
+        assert row["event_time"] <= accuracy.TARGETS["event_time"], row
+        if not row["voltage_jumps"]:  # see the benchmark's note on the voltage jump
+            assert row["rate"] <= accuracy.TARGETS["rate"], row
+            assert row["current"] <= accuracy.TARGETS["current"], row
+    assert sum(row["events"] for row in exact_rows) > 100  # the sample does switch
+
+
+def test_switches_seen_only_at_step_ends_miss_some(exact_rows, step_end_rows):
+    """What exact switches fix: the same episodes lose events and currents drift."""
+    assert sum(row["unpaired_events"] for row in step_end_rows) > 0
+    assert max(row["current"] for row in step_end_rows) > max(row["current"] for row in exact_rows)
+
+
+def test_paired_time_errors_pair_by_kind_axis_and_order():
+    events = [(1, 0, 0.10), (2, 0, 0.20), (9, -1, 0.5)]
+    reference = [(1, 0, 0.1000004), (2, 0, 0.20), (1, 0, 0.3)]
+    worst, unpaired = accuracy._paired_time_errors(events, reference)
+    assert worst == pytest.approx(4e-7)
+    assert unpaired == 2  # the second (1, 0) and the (9, -1)
+
+
+def test_accuracy_command_prints_both_tables(capsys):
+    from scara_gym.benchmark.cli import main
+    assert main(["accuracy", "--episodes", "2"]) == 0
+    out = capsys.readouterr().out
+    assert "Accuracy with exact switches at rtol 1e-05, atol 1e-06" in out
+    assert "switches at step ends (exact_switches=False)" in out
+    assert out.count("| event_time [s] | 1e-06 |") == 2
+
+
+@pytest.mark.parametrize("argv, words", [
+    (["accuracy", "--episodes", "0"], "--episodes must be >= 1"),
+    (["accuracy", "--rtol", "1.5"], "--rtol must be in (0, 1)"),
+])
+def test_accuracy_command_rejects_bad_arguments(argv, words, capsys):
+    from scara_gym.benchmark.cli import main
+    with pytest.raises(SystemExit):
+        main(argv)
+    assert words in capsys.readouterr().err
+
+
+def test_plans_are_reproducible():
+    again = accuracy.plans(8, seed=0)
+    for a, b in zip(SAMPLE, again):
+        assert a.env_kwargs == b.env_kwargs and np.array_equal(a.actions, b.actions)
