@@ -20,7 +20,8 @@ from dataclasses import dataclass, fields
 import numpy as np
 
 from scara_gym.envs.core import (
-    N_OBS, OBSERVATION, OUTCOME, REWARD_TERMS, TASK, pd_actions, start_robot, step_robot, step_robots,  # noqa: F401
+    N_INFO, N_OBS, OBSERVATION, OUTCOME, REWARD_TERMS, TASK, pack_info, pd_actions, start_robot, step_robot,
+    step_robots,  # noqa: F401
 )
 from scara_gym.model import records as R
 from scara_gym.model.dynamics import tip_position
@@ -202,6 +203,7 @@ class ScaraTask:
         self.log = np.zeros((n, EVENT_LOG_SIZE), dtype=R.EVENT)
         self.outcomes = np.zeros(n, dtype=OUTCOME)
         self.obs = np.zeros((n, N_OBS), dtype=np.float32)
+        self._info_buffer = np.zeros(N_INFO)
 
     # -- layouts and mappings ------------------------------------------------------------
     def _observation_bounds(self) -> tuple[np.ndarray, np.ndarray]:
@@ -329,25 +331,26 @@ class ScaraTask:
 
     def _robot_info(self, i: int) -> dict:
         """info(i): the same entries as Python scalars, plus current_limited, voltage, target."""
-        # one bulk conversion per record: reading fields of a record one by one costs ~1.5 us each
-        outcome = dict(zip(OUTCOME.names, self.outcomes[i:i + 1].tolist()[0]))
-        robot = dict(zip(R.ROBOT.names, self.robots[i:i + 1].tolist()[0]))
-        collisions = outcome["collisions"]
-        reached = outcome["reached"]
+        values = pack_info(i, self.robots, self.robot_params, self.outcomes, self._info_buffer).tolist()
+        (progress, time, energy_term, collision, success, reached, collisions, episode_collisions, critical,
+         t, energy, clipped, reach_time, *rest) = values
+        collisions = int(collisions)
+        reached = reached != 0.0
         info = {
-            "reward_terms": {term: outcome[term] for term in REWARD_TERMS},
+            "reward_terms": {"progress": progress, "time": time, "energy": energy_term,
+                             "collision": collision, "success": success},
             "is_success": reached,
             "cost": 1.0 if collisions > 0 else 0.0,
             "collision": collisions > 0,
-            "collisions": outcome["episode_collisions"],
-            "critical": robot["critical"] == 1,
-            "time": robot["t"],
-            "energy": robot["x"][R.ENERGY],
-            "clipped_actions": outcome["clipped"],
-            "current_limited": np.array(robot["hold"]) != 0,
-            "voltage": np.array(outcome["voltage"]),
-            "target": self.robot_params["target"][i].copy(),
+            "collisions": int(episode_collisions),
+            "critical": critical == 1.0,
+            "time": t,
+            "energy": energy,
+            "clipped_actions": int(clipped),
+            "current_limited": np.array(rest[0:3]) != 0.0,
+            "voltage": np.array(rest[3:6]),
+            "target": np.array(rest[6:9]),
         }
         if reached:
-            info["reach_time"] = outcome["reach_time"]
+            info["reach_time"] = reach_time
         return info
