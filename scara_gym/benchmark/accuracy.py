@@ -64,7 +64,7 @@ def _action_program(rng: np.random.Generator, program: str, dt: float, start_act
 
 def episode_plan(rng: np.random.Generator, index: int) -> EpisodePlan:
     """A random episode: mode, obstacle, start, target, collision mode and actions."""
-    from scara_gym.envs.task import SETPOINT_HIGH, SETPOINT_LOW
+    from scara_gym.envs.task import SETPOINT_CENTER, SETPOINT_HALF, SETPOINT_HIGH, SETPOINT_LOW
 
     program = PROGRAMS[index % len(PROGRAMS)]
     control_mode = "pd" if program == "setpoints" else "voltage"
@@ -74,7 +74,7 @@ def episode_plan(rng: np.random.Generator, index: int) -> EpisodePlan:
     target = SETPOINT_LOW + span * rng.uniform(0.1, 0.9, 3)
     env_kwargs = {"control_mode": control_mode, "obstacle": obstacle,
                   "collision": "penalty" if rng.random() < 0.5 else "terminate"}
-    target_action = (target - 0.5 * (SETPOINT_HIGH + SETPOINT_LOW)) / (0.5 * span)
+    target_action = (target - SETPOINT_CENTER) / SETPOINT_HALF
     actions = _action_program(rng, program, 0.01, target_action)
     return EpisodePlan(index, program, env_kwargs, {"start": start, "target": target}, actions)
 

@@ -34,6 +34,9 @@ COLLISION_MODES = ("terminate", "penalty")
 # PD set-point range the action [-1, 1] spans [rad, rad, m]
 SETPOINT_LOW = np.array([-math.pi, -math.pi, 0.0])
 SETPOINT_HIGH = np.array([math.pi, math.pi, 0.4])
+# "pd" set-point = SETPOINT_CENTER + SETPOINT_HALF * action
+SETPOINT_CENTER = 0.5 * (SETPOINT_HIGH + SETPOINT_LOW)
+SETPOINT_HALF = 0.5 * (SETPOINT_HIGH - SETPOINT_LOW)
 # randomize_target draws q^ uniformly from this box [rad, rad, m]; see the card
 TARGET_LOW = np.array([1.5, 1.5, 0.2])
 TARGET_HIGH = np.array([2.5, 2.5, 0.35])
@@ -174,8 +177,8 @@ class ScaraTask:
         self.exact_switches = bool(exact_switches)
         self.default_target = self.check_target(target if target is not None else self.params.task.target, "target")
         self.default_start = check_state("start", start if start is not None else self.params.task.start, 3)
-        self.setpoint_center = 0.5 * (SETPOINT_HIGH + SETPOINT_LOW)
-        self.setpoint_half = 0.5 * (SETPOINT_HIGH - SETPOINT_LOW)
+        self.setpoint_center = SETPOINT_CENTER
+        self.setpoint_half = SETPOINT_HALF
         self.obs_low, self.obs_high = self._observation_bounds()
         self.num_robots = n = int(num_robots)
 
@@ -332,13 +335,13 @@ class ScaraTask:
     def _robot_info(self, i: int) -> dict:
         """info(i): the same entries as Python scalars, plus current_limited, voltage, target."""
         values = pack_info(i, self.robots, self.robot_params, self.outcomes, self._info_buffer).tolist()
-        (progress, time, energy_term, collision, success, reached, collisions, episode_collisions, critical,
-         t, energy, clipped, reach_time, *rest) = values
+        terms = dict(zip(REWARD_TERMS, values[:len(REWARD_TERMS)]))
+        (reached, collisions, episode_collisions, critical, t, energy, clipped, reach_time,
+         *rest) = values[len(REWARD_TERMS):]
         collisions = int(collisions)
         reached = reached != 0.0
         info = {
-            "reward_terms": {"progress": progress, "time": time, "energy": energy_term,
-                             "collision": collision, "success": success},
+            "reward_terms": terms,
             "is_success": reached,
             "cost": 1.0 if collisions > 0 else 0.0,
             "collision": collisions > 0,

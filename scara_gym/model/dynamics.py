@@ -146,11 +146,16 @@ def voltage_limit(p, axis, widened):
     return p.wide_voltage_limit[axis] if widened else p.voltage_limit[axis]
 
 
+@njit(**JIT_INLINE)
+def pd_unsaturated(setpoint, q, v, p, axis):
+    """P_i (q^_i - q_i) - D_i q_i': the PD law of eq. 15 before its saturation."""
+    return p.p_gain[axis] * (setpoint - q) - p.d_gain[axis] * v
+
+
 @njit(**JIT)
 def pd_voltage(setpoint, q, v, p, axis, limit):
     """U_i = sat(P_i (q^_i - q_i) - D_i q_i', +-limit) (eq. 15-16)."""
-    u = p.p_gain[axis] * (setpoint - q) - p.d_gain[axis] * v
-    return min(max(u, -limit), limit)
+    return min(max(pd_unsaturated(setpoint, q, v, p, axis), -limit), limit)
 
 
 @njit(**JIT)
@@ -192,8 +197,8 @@ def is_widened(robot, config):
 
 @njit(**JIT_INLINE)
 def pd_linear_voltage(robot, x, p, axis):
-    """P_i (q^_i - q_i) - D_i q_i': the PD law before its saturation."""
-    return p.p_gain[axis] * (robot.command[axis] - x[Q + axis]) - p.d_gain[axis] * x[RATE + axis]
+    """pd_unsaturated for the robot's set-point and state."""
+    return pd_unsaturated(robot.command[axis], x[Q + axis], x[RATE + axis], p, axis)
 
 
 @njit(**JIT_INLINE)

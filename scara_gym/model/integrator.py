@@ -95,16 +95,15 @@ def event_values(x, robot, p, config, volts, g):
     g[E_HEIGHT] = (x[Q + 2] - p.wall_height) if robot.above == 1 else (p.wall_height - x[Q + 2])
     error = target_error(x, p)
     g[E_TARGET] = (p.accuracy - error) if robot.inside == 1 else (error - p.accuracy)
-    exact_pd = config.exact_switches and config.control == CONTROL_PD
-    widened = is_widened(robot, config)
-    for axis in range(3):
-        if exact_pd:
+    if config.exact_switches and config.control == CONTROL_PD:
+        widened = is_widened(robot, config)
+        for axis in range(3):
             limit = voltage_limit(p, axis, widened)
             u = pd_linear_voltage(robot, x, p, axis)
             mode = robot.saturation[axis]
             g[E_SAT1 + axis] = (limit - abs(u)) if mode == 0 else (mode * u - limit)
-        else:
-            g[E_SAT1 + axis] = 1.0
+    else:
+        g[E_SAT1:E_SAT1 + 3] = 1.0  # no saturation modes: they never switch
     return g
 
 
