@@ -7,7 +7,7 @@ renderer), :mod:`scara_gym.benchmark` (the seed paper's tasks, the scipy referen
 """
 
 from scara_gym.model import (
-    DEFAULT_PARAMS, ArmParams, AxisParams, Event, ObstacleParams, ScaraParams, Simulator,
+    DEFAULT_PARAMS, ArmParams, AxisParams, Event, ObstacleParams, ScaraParams, SimulationError, Simulator,
     TaskParams, Trajectory,
 )
 from scara_gym.benchmark.tasks import compare_forms, obstacle_avoidance, point_to_point
@@ -27,6 +27,6 @@ if ENV_ID not in registry:
 __all__ = [
     "ENV_ID", "ENV_IDS", "__version__",
     "ArmParams", "AxisParams", "DEFAULT_PARAMS", "Event", "ObstacleParams", "ScaraParams",
-    "Simulator", "TaskParams", "Trajectory", "compare_forms", "obstacle_avoidance",
+    "SimulationError", "Simulator", "TaskParams", "Trajectory", "compare_forms", "obstacle_avoidance",
     "point_to_point",
 ]

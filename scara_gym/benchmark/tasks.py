@@ -14,7 +14,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from scara_gym.model.params import DEFAULT_PARAMS, ScaraParams
+from scara_gym.model import checks
+from scara_gym.model.params import DEFAULT_PARAMS, ScaraParams, resolve_params
 from scara_gym.model.simulator import (
     REFERENCE_ATOL, REFERENCE_RTOL, Simulator, Trajectory, check_state, start_state,
 )
@@ -22,10 +23,15 @@ from scara_gym.model.simulator import (
 VARIANTS = ("restart", "continuous", "none")
 
 
+def _end_time(t_end) -> float:
+    return checks.real("t_end", t_end, 0.0, 1000.0, unit="s", low_open=True)
+
+
 def point_to_point(params: ScaraParams = DEFAULT_PARAMS, *, form: str = "explicit",
                    rtol: float = REFERENCE_RTOL, atol: float = REFERENCE_ATOL,
                    t_end: float = 5.0, q0=None, wall: bool = False) -> Trajectory:
     """Task b: PD point-to-point move from the task's start, stopped when all |q_i - q^_i| < acc."""
+    t_end = _end_time(t_end)
     sim = Simulator(params, form=form, wall=wall, stop=("target",), rtol=rtol, atol=atol)
     sim.reset(start_state(params, q0), command=params.task.target)
     started = time.perf_counter()
@@ -59,8 +65,7 @@ class FormComparison:
 def compare_forms(params: ScaraParams = DEFAULT_PARAMS, *, repeats: int = 5,
                   rtol: float = REFERENCE_RTOL, atol: float = REFERENCE_ATOL) -> FormComparison:
     """Task a: same model, analytic inverse vs linear solve per evaluation."""
-    if not (isinstance(repeats, int) and repeats >= 1):
-        raise ValueError(f"repeats must be an integer >= 1, got {repeats!r}")
+    repeats = checks.integer("repeats", repeats, 1)
     runs = {}
     for form in ("explicit", "implicit"):
         point_to_point(params, form=form, rtol=rtol, atol=atol)  # compile / warm up
@@ -95,8 +100,10 @@ def obstacle_avoidance(params: ScaraParams = DEFAULT_PARAMS, *, variant: str = "
     q3 < h_obs) are located and logged; the run goes on through them unless
     stop_on_collision.
     """
-    if variant not in VARIANTS:
-        raise ValueError(f"variant must be one of {VARIANTS}, got {variant!r}")
+    checks.choice("variant", variant, VARIANTS)
+    params = resolve_params(params)
+    t_end = _end_time(t_end)
+    stop_on_collision = checks.flag("stop_on_collision", stop_on_collision)
     if dec is not None:
         params = params.replace({"obstacle.dec": dec})
     stops = ("target", "collision") if stop_on_collision else ("target",)

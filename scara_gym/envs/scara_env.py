@@ -7,6 +7,7 @@ import numpy as np
 from gymnasium import spaces
 
 from scara_gym.envs.task import OBSERVATION_NAMES, RewardWeights, ScaraTask, check_actions
+from scara_gym.model import checks
 from scara_gym.model import records as R
 from scara_gym.model.params import ScaraParams
 
@@ -215,7 +216,7 @@ class ScaraEnv(gym.Env):
 
     # -- API ---------------------------------------------------------------------------
     def reset(self, *, seed: int | None = None, options: dict | None = None):
-        super().reset(seed=seed)
+        super().reset(seed=checks.seed("seed", seed))
         info = self.task.reset_robot(0, self.np_random, options)
         self._needs_reset = False
         self._trace = [self._tip()]

@@ -15,6 +15,8 @@ action mapping of the "pd" mode (:meth:`ScaraTask.setpoint_to_action`,
 from __future__ import annotations
 
 import math
+import threading
+from collections.abc import Mapping
 from dataclasses import dataclass, fields
 
 import numpy as np
@@ -25,10 +27,15 @@ from scara_gym.envs.core import (
 )
 from scara_gym.model import records as R
 from scara_gym.model.dynamics import tip_position
-from scara_gym.model.params import DEFAULT_PARAMS, ScaraParams
-from scara_gym.model.simulator import CONTROLS, STATUS_NAMES, check_state, check_tolerance
+from scara_gym.model import checks
+from scara_gym.model.params import DEFAULT_PARAMS, ScaraParams, resolve_params
+from scara_gym.model.simulator import CONTROLS, SimulationError, check_state, check_tolerance, failure_message
 
 CONTROL_MODES = ("pd", "voltage")
+CONTROL_DT_RANGE = (1e-4, 1.0)  # [s]
+TIME_LIMIT_MAX = 1e4            # [s]
+MAX_ROBOTS = 2**24
+DEFAULT_DEC = DEFAULT_PARAMS.obstacle.dec
 COLLISION_MODES = ("terminate", "penalty")
 
 # PD set-point range the action [-1, 1] spans [rad, rad, m]
@@ -38,6 +45,9 @@ SETPOINT_HIGH = np.array([math.pi, math.pi, 0.4])
 SETPOINT_CENTER = 0.5 * (SETPOINT_HIGH + SETPOINT_LOW)
 SETPOINT_HALF = 0.5 * (SETPOINT_HIGH - SETPOINT_LOW)
 # randomize_target draws q^ uniformly from this box [rad, rad, m]; see the card
+# starts and targets must lie in the joint range [rad, rad, m]: the set-point range
+JOINT_LOW, JOINT_HIGH = SETPOINT_LOW, SETPOINT_HIGH
+JOINT_RANGE_TEXT = "q1, q2 in [-pi, pi] rad and q3 in [0, 0.4] m"
 TARGET_LOW = np.array([1.5, 1.5, 0.2])
 TARGET_HIGH = np.array([2.5, 2.5, 0.35])
 TARGET_CLEARANCE = 0.02  # [m] a drawn target tip keeps this much beyond the critical band
@@ -46,6 +56,12 @@ HEIGHT_BOUND = 1.0          # [m]
 ANGLE_RATE_BOUND = 20.0     # [rad/s]
 HEIGHT_RATE_BOUND = 2.0     # [m/s]
 EVENT_LOG_SIZE = 256        # events one robot can log in one control step
+
+# numba's workqueue threading layer (the one left where OpenMP and TBB are missing, e.g.
+# macOS wheels) aborts the process when two threads run parallel code at once; one
+# parallel step at a time is safe under every layer and costs nothing, since each step
+# already uses all of numba's threads
+PARALLEL_LOCK = threading.Lock()
 
 OBSERVATION_LAYOUT = {
     name: (slice(offset, offset + dtype.shape[0]) if dtype.shape else offset)
@@ -78,24 +94,17 @@ class RewardWeights:
 
     def __post_init__(self) -> None:
         for f in fields(self):
-            value = getattr(self, f.name)
-            if isinstance(value, bool) or not isinstance(value, (int, float)) or not (
-                    math.isfinite(value) and value >= 0):
-                raise ValueError(f"reward_weights.{f.name} must be a finite number >= 0, got {value!r}")
+            object.__setattr__(self, f.name, checks.real(f"reward_weights.{f.name}", getattr(self, f.name), 0.0))
 
 
 def check_actions(action, shape: tuple[int, ...]) -> np.ndarray:
     """Finite float64 actions of the given shape (C-contiguous; not yet clipped: the compiled
-    step clips them to [-1, 1] and counts the clipped components)."""
+    step clips them to [-1, 1] and counts the clipped components). Real numbers only: a
+    complex, boolean, text or object action is an error, not a cast."""
     try:
-        a = np.ascontiguousarray(action, dtype=np.float64)
-    except (TypeError, ValueError):
-        raise ValueError(f"action must be numbers in [-1, 1] of shape {shape}, got {action!r}") from None
-    if a.shape != shape:
-        raise ValueError(f"action must have shape {shape}, got shape {a.shape}")
-    if not np.isfinite(a).all():
-        raise ValueError(f"action must be finite (allowed range [-1, 1]), got {a.tolist()}")
-    return a
+        return checks.real_array("action", action, shape, range_text="values in [-1, 1] (beyond: clipped)")
+    except TypeError as error:  # one exception type for every bad action
+        raise ValueError(str(error)) from None
 
 
 def draw_target(rng: np.random.Generator, start: np.ndarray, params: ScaraParams, obstacle: bool) -> np.ndarray:
@@ -116,35 +125,19 @@ def draw_target(rng: np.random.Generator, start: np.ndarray, params: ScaraParams
                        "rules with these parameters")
 
 
-def _positive_seconds(name: str, value) -> float:
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or not (
-            math.isfinite(value) and value > 0):
-        raise ValueError(f"{name} must be a finite number > 0 [s], got {value!r}")
-    return float(value)
-
-
-def _params(params) -> ScaraParams:
-    if params is None:
-        return DEFAULT_PARAMS
-    if isinstance(params, dict):
-        return DEFAULT_PARAMS.replace(params)
-    if not isinstance(params, ScaraParams):
-        raise TypeError(f"params must be a ScaraParams or a dict of overrides, got {type(params).__name__}")
-    return params
-
-
 def _reward_weights(reward_weights) -> RewardWeights:
     if reward_weights is None:
         return RewardWeights()
-    if isinstance(reward_weights, dict):
-        unknown = set(reward_weights) - {f.name for f in fields(RewardWeights)}
+    if isinstance(reward_weights, RewardWeights):
+        return reward_weights
+    names = [f.name for f in fields(RewardWeights)]
+    if isinstance(reward_weights, Mapping):
+        unknown = sorted(map(str, set(reward_weights) - set(names)))
         if unknown:
-            raise ValueError(f"reward_weights has unknown terms {sorted(unknown)}; "
-                             f"allowed: {[f.name for f in fields(RewardWeights)]}")
+            raise ValueError(f"reward_weights has unknown terms {unknown}; allowed: {names}")
         return RewardWeights(**reward_weights)
-    if not isinstance(reward_weights, RewardWeights):
-        raise TypeError("reward_weights must be a RewardWeights or a dict")
-    return reward_weights
+    raise TypeError(f"reward_weights must be a RewardWeights or a dict with keys among {names}, "
+                    f"got {reward_weights!r}")
 
 
 class ScaraTask:
@@ -156,31 +149,31 @@ class ScaraTask:
                  time_limit: float = 3.0, params: ScaraParams | dict | None = None,
                  rtol: float = 1e-5, atol: float = 1e-6, exact_switches: bool = False,
                  num_robots: int = 1) -> None:
-        if control_mode not in CONTROL_MODES:
-            raise ValueError(f"control_mode must be one of {CONTROL_MODES}, got {control_mode!r}")
-        if collision not in COLLISION_MODES:
-            raise ValueError(f"collision must be one of {COLLISION_MODES}, got {collision!r}")
-        if not isinstance(obstacle, (bool, np.bool_)):
-            raise TypeError(f"obstacle must be True or False, got {obstacle!r}")
-        self.control_dt = _positive_seconds("control_dt", control_dt)
-        self.time_limit = _positive_seconds("time_limit", time_limit)
-        self.params = _params(params)
+        self.control_mode = checks.choice("control_mode", control_mode, CONTROL_MODES)
+        self.obstacle = checks.flag("obstacle", obstacle)
+        self.collision_mode = checks.choice("collision", collision, COLLISION_MODES)
+        self.randomize_target = checks.flag("randomize_target", randomize_target)
+        self.control_dt = checks.real("control_dt", control_dt, *CONTROL_DT_RANGE, unit="s")
+        self.time_limit = checks.real("time_limit", time_limit, self.control_dt, TIME_LIMIT_MAX,
+                                      unit="s, at least control_dt")
+        self.params = resolve_params(params)
+        if self.params.obstacle.dec != DEFAULT_DEC:
+            raise ValueError(
+                f"params: obstacle.dec = {self.params.obstacle.dec!r} has no effect in the environment, "
+                f"where the agent decides how to pass the wall; the seed's dec rule lives in "
+                f"scara_gym.obstacle_avoidance(dec=...) (the model) and agents.policies.DecPolicy "
+                f"(a policy for this environment). Leave obstacle.dec at {DEFAULT_DEC:g}")
         self.reward_weights = _reward_weights(reward_weights)
-        self.control_mode = control_mode
-        self.obstacle = bool(obstacle)
-        self.collision_mode = collision
-        self.randomize_target = bool(randomize_target)
         self.rtol = check_tolerance("rtol", rtol)
         self.atol = check_tolerance("atol", atol)
-        if not isinstance(exact_switches, (bool, np.bool_)):
-            raise TypeError(f"exact_switches must be True or False, got {exact_switches!r}")
-        self.exact_switches = bool(exact_switches)
+        self.exact_switches = checks.flag("exact_switches", exact_switches)
+        num_robots = checks.integer("num_robots", num_robots, 1, MAX_ROBOTS)
         self.default_target = self.check_target(target if target is not None else self.params.task.target, "target")
-        self.default_start = check_state("start", start if start is not None else self.params.task.start, 3)
+        self.default_start = self.check_joints(start if start is not None else self.params.task.start, "start")
         self.setpoint_center = SETPOINT_CENTER
         self.setpoint_half = SETPOINT_HALF
         self.obs_low, self.obs_high = self._observation_bounds()
-        self.num_robots = n = int(num_robots)
+        self.num_robots = n = num_robots
 
         # the compiled step's records: shared configuration and constants, per-robot state
         self.config = np.zeros(1, dtype=R.CONFIG)
@@ -241,22 +234,21 @@ class ScaraTask:
         out = pd_actions(np.ascontiguousarray(obs), setpoints, self.robot_params, np.empty((len(obs), 3)))
         return out[0] if single else out
 
+    @staticmethod
+    def check_joints(value, name: str) -> np.ndarray:
+        """A start or target q [rad, rad, m] inside the joint range JOINT_LOW..JOINT_HIGH (the
+        "pd" mode's set-point range, which the observation bounds are built around)."""
+        return checks.real_array(name, value, (3,), unit="rad, rad, m", low=JOINT_LOW, high=JOINT_HIGH,
+                                 range_text=JOINT_RANGE_TEXT)
+
     def check_target(self, target, name: str) -> np.ndarray:
-        target = check_state(name, target, 3)
-        inside = np.all((target >= SETPOINT_LOW) & (target <= SETPOINT_HIGH))
-        if self.control_mode == "pd" and not inside:
-            raise ValueError(f"{name} must lie in the set-point range q1, q2 in [-pi, pi] rad, "
-                             f"q3 in [0, 0.4] m of the 'pd' mode, got {target.tolist()}")
-        return target
+        return self.check_joints(target, name)
 
     # -- episodes ------------------------------------------------------------------------
     def episode_start(self, rng: np.random.Generator, options: dict | None) -> tuple[np.ndarray, np.ndarray]:
         """(start, target) of a new episode from the reset options and the episode RNG."""
-        options = {} if options is None else dict(options)
-        unknown = set(options) - {"target", "start"}
-        if unknown:
-            raise ValueError(f"unknown reset options {sorted(unknown)}; allowed: 'target', 'start'")
-        start = check_state("options['start']", options["start"], 3) if "start" in options else self.default_start
+        options = checks.mapping("reset options", options, ("target", "start"))
+        start = self.check_joints(options["start"], "options['start']") if "start" in options else self.default_start
         if "target" in options:
             target = self.check_target(options["target"], "options['target']")
         elif self.randomize_target:
@@ -270,13 +262,17 @@ class ScaraTask:
     def reset_robot(self, i: int, rng: np.random.Generator, options: dict | None = None) -> dict:
         """Start a new episode of robot i; returns the reset info (target, start)."""
         start, target = self.episode_start(rng, options)
+        self.begin_episode(i, start, target)
+        return {"target": target, "start": start}
+
+    def begin_episode(self, i: int, start: np.ndarray, target: np.ndarray) -> None:
+        """Robot i at rest at q = start with its target (both checked by episode_start)."""
         self.robot_params["target"][i] = target
         robot = self.robots[i]
         robot["x"] = 0.0
         robot["x"][R.Q:R.Q + 3] = start
         robot["command"] = target if self.control_mode == "pd" else 0.0
         start_robot(i, self.robots, self.robot_params, self.config, self.task, self.outcomes, self.obs)
-        return {"target": target, "start": start}
 
     # -- steps ---------------------------------------------------------------------------
     def step_robot(self, i: int, action: np.ndarray) -> None:
@@ -289,8 +285,9 @@ class ScaraTask:
 
     def step_robots(self, active: np.ndarray, actions: np.ndarray) -> None:
         """One control step of every active robot in parallel (actions: checked (N, 3) float64)."""
-        step_robots(active, actions, self.robots, self.robot_params, self.config, self.task, self.log,
-                    self.outcomes, self.obs)
+        with PARALLEL_LOCK:
+            step_robots(active, actions, self.robots, self.robot_params, self.config, self.task, self.log,
+                        self.outcomes, self.obs)
         failed = active & (self.outcomes["status"] < 0)
         if failed.any():
             i = int(np.flatnonzero(failed)[0])
@@ -299,9 +296,8 @@ class ScaraTask:
     def _raise_for(self, status: int, i: int, action) -> None:
         if status == R.STATUS_BAD_ACTION:
             check_actions(action, (3,))  # raises naming it
-        where = f" in sub-environment {i}" if self.num_robots > 1 else ""
-        raise RuntimeError(f"integration failed ({STATUS_NAMES[status]}){where} "
-                           f"at t = {self.robots['t'][i]:.6f} s")
+        where = f"sub-environment {i}: " if self.num_robots > 1 else ""
+        raise SimulationError(where + failure_message(status, self.robots[i], self.config[0], self.params))
 
     def terminated(self, outcome) -> bool | np.ndarray:
         """Success, or a collision where collisions terminate (one outcome or an array of them)."""

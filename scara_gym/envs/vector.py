@@ -22,6 +22,7 @@ from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
 from scara_gym.envs.task import ScaraTask, check_actions
+from scara_gym.model import checks
 
 
 class ScaraVectorEnv(VectorEnv):
@@ -85,23 +86,26 @@ class ScaraVectorEnv(VectorEnv):
 
     # -- episodes ----------------------------------------------------------------------
     def reset(self, *, seed: int | list[int | None] | None = None, options: dict | None = None):
-        if seed is None:
-            seeds = [None] * self.num_envs
-        elif isinstance(seed, (int, np.integer)):
-            seeds = [int(seed) + i for i in range(self.num_envs)]
-        else:
-            seeds = list(seed)
-            if len(seeds) != self.num_envs:
-                raise ValueError(f"seed must be an int, None or a list of {self.num_envs} seeds, "
-                                 f"got {len(seeds)}")
-        for i, s in enumerate(seeds):
-            if s is not None:
-                self._rngs[i] = seeding.np_random(s)[0]
-        for i in range(self.num_envs):
-            self.task.reset_robot(i, self._rngs[i], options)
+        seeds = self._seeds(seed)
+        options = checks.mapping("reset options", options, ("target", "start"))
+        # every robot's start and target are checked before any robot changes
+        rngs = [self._rngs[i] if s is None else seeding.np_random(s)[0] for i, s in enumerate(seeds)]
+        plans = [self.task.episode_start(rng, options) for rng in rngs]
+        self._rngs = rngs
+        for i, (start, target) in enumerate(plans):
+            self.task.begin_episode(i, start, target)
         self._prev_done[:] = False
         self._started = True
         return self.task.obs.copy(), {"target": self.targets}
+
+    def _seeds(self, seed) -> list[int | None]:
+        text = f"seed must be None, an integer >= 0 or a list of {self.num_envs} such seeds or None"
+        if seed is None or checks.is_real(seed) or isinstance(seed, (bool, np.bool_)):
+            first = checks.seed("seed", seed)
+            return [None if first is None else first + i for i in range(self.num_envs)]
+        if not isinstance(seed, (list, tuple, np.ndarray)) or len(seed) != self.num_envs:
+            raise ValueError(f"{text}, got {seed!r}")
+        return [checks.seed(f"seed[{i}]", s) for i, s in enumerate(seed)]
 
     # -- stepping ----------------------------------------------------------------------
     def step(self, actions):

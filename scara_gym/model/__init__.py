@@ -14,9 +14,9 @@ from scara_gym.model import compilation  # noqa: F401  (cache locators before an
 from scara_gym.model.params import (
     DEFAULT_PARAMS, ArmParams, AxisParams, ObstacleParams, ScaraParams, TaskParams,
 )
-from scara_gym.model.simulator import Event, Simulator, Trajectory, start_state
+from scara_gym.model.simulator import Event, SimulationError, Simulator, Trajectory, start_state
 
 __all__ = [
     "ArmParams", "AxisParams", "DEFAULT_PARAMS", "Event", "ObstacleParams", "ScaraParams",
-    "Simulator", "TaskParams", "Trajectory", "start_state",
+    "SimulationError", "Simulator", "TaskParams", "Trajectory", "start_state",
 ]

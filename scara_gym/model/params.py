@@ -23,50 +23,30 @@ from typing import Any, Mapping
 
 import numpy as np
 
+from scara_gym.model import checks
 from scara_gym.model.records import PARAMS
 
-POSITIVE = (0.0, math.inf, "open")
-NON_NEGATIVE = (0.0, math.inf, "closed")
+def _quantity(default: float, unit: str, low: float, high: float, doc: str = "", *,
+              low_open: bool = False) -> Any:
+    """A scalar field: its unit and allowed interval [low, high] (open at low if low_open)
+    in ``metadata``. The intervals keep every quantity physical and float64 arithmetic far
+    from overflow; they span about three decades around the C11 values."""
+    return field(default=default, metadata={"unit": unit, "range": (low, high, low_open), "doc": doc})
 
 
-def _quantity(default: float, unit: str, allowed=POSITIVE, doc: str = "") -> Any:
-    return field(default=default, metadata={"unit": unit, "range": allowed, "doc": doc})
+def _check_quantity(path: str, value: Any, unit: str, allowed) -> float:
+    low, high, low_open = allowed
+    return checks.real(path, value, low, high, unit=unit, low_open=low_open)
 
 
-def _range_text(allowed) -> str:
-    low, high, kind = allowed
-    if kind == "open":
-        left = f"> {low:g}"
-    else:
-        left = f">= {low:g}"
-    if math.isinf(high):
-        return left
-    right = f"< {high:g}" if kind == "open" else f"<= {high:g}"
-    return f"{left} and {right}"
-
-
-def _check_quantity(path: str, value: Any, unit: str, allowed) -> None:
-    low, high, kind = allowed
-    text = f"{path} must be a finite number {_range_text(allowed)} [{unit}]"
-    if isinstance(value, bool) or not isinstance(value, (int, float, np.floating, np.integer)):
-        raise TypeError(f"{text}, got {value!r}")
-    value = float(value)
-    if not math.isfinite(value):
-        raise ValueError(f"{text}, got {value!r}")
-    inside = (low < value) if kind == "open" else (low <= value)
-    inside = inside and (value < high if kind == "open" else value <= high)
-    if not inside:
-        raise ValueError(f"{text}, got {value!r}")
-
-
-def _check_vector(path: str, value: Any, unit: str) -> tuple[float, float, float]:
-    try:
-        vector = np.asarray(value, dtype=float)
-    except (TypeError, ValueError):
-        raise TypeError(f"{path} must be 3 finite numbers [{unit}], got {value!r}") from None
-    if vector.shape != (3,) or not np.all(np.isfinite(vector)):
-        raise ValueError(f"{path} must be 3 finite numbers [{unit}], got {value!r}")
+def _check_vector(path: str, value: Any, unit: str, low: float = -math.inf, high: float = math.inf) -> tuple:
+    text = "" if math.isinf(low) else f"each in [{low:g}, {high:g}]"
+    vector = checks.real_array(path, value, (3,), unit=unit, low=None if math.isinf(low) else low,
+                               high=high, range_text=text)
     return tuple(float(v) for v in vector)
+
+
+MIN_ELECTRICAL_TIME_CONSTANT = 1e-5  # [s] L/R of each motor; C11's smallest is 5e-4 s
 
 
 class _Validated:
@@ -75,25 +55,25 @@ class _Validated:
     def __post_init__(self) -> None:
         for f in dataclasses.fields(self):
             if "range" in f.metadata:
-                _check_quantity(f"{type(self).__name__}.{f.name}", getattr(self, f.name),
-                                f.metadata["unit"], f.metadata["range"])
-                object.__setattr__(self, f.name, float(getattr(self, f.name)))
+                value = _check_quantity(f"{type(self).__name__}.{f.name}", getattr(self, f.name),
+                                        f.metadata["unit"], f.metadata["range"])
+                object.__setattr__(self, f.name, value)
 
 
 @dataclass(frozen=True)
 class ArmParams(_Validated):
     """Mechanics of the two links and the vertical load (seed eq. 3-9)."""
 
-    link1_length: float = _quantity(0.4, "m", doc="L1")
-    link2_length: float = _quantity(0.3, "m", doc="L2")
-    link1_mass: float = _quantity(8.0, "kg", doc="m1, uniform rod")
-    link2_mass: float = _quantity(6.0, "kg", doc="m2, uniform rod")
-    end_mass: float = _quantity(2.5, "kg", NON_NEGATIVE,
+    link1_length: float = _quantity(0.4, "m", 0.01, 10.0, doc="L1")
+    link2_length: float = _quantity(0.3, "m", 0.01, 10.0, doc="L2")
+    link1_mass: float = _quantity(8.0, "kg", 0.01, 1000.0, doc="m1, uniform rod")
+    link2_mass: float = _quantity(6.0, "kg", 0.01, 1000.0, doc="m2, uniform rod")
+    end_mass: float = _quantity(2.5, "kg", 0.0, 1000.0,
                                 doc="m_end, stator of the vertical drive at the end of link 2")
-    load_mass: float = _quantity(0.5, "kg", doc="m3L, load moved by the prismatic joint")
-    motor3_rotor_inertia: float = _quantity(9.1e-6, "kg m^2", NON_NEGATIVE,
+    load_mass: float = _quantity(0.5, "kg", 0.001, 1000.0, doc="m3L, load moved by the prismatic joint")
+    motor3_rotor_inertia: float = _quantity(9.1e-6, "kg m^2", 0.0, 1.0,
                                             doc="th3mot; motors 1 and 2 have none")
-    gravity: float = _quantity(9.81, "m/s^2", NON_NEGATIVE, doc="g")
+    gravity: float = _quantity(9.81, "m/s^2", 0.0, 100.0, doc="g")
 
     @property
     def theta1(self) -> float:
@@ -123,14 +103,23 @@ class ArmParams(_Validated):
 class AxisParams(_Validated):
     """One DC motor with gear and its saturated PD controller (seed eq. 13-16)."""
 
-    resistance: float = _quantity(3.9, "Ohm", doc="R")
-    inductance: float = _quantity(0.0073, "H", doc="L")
-    torque_constant: float = _quantity(0.4, "N m/A", doc="kT (also the back-EMF constant)")
-    gear_ratio: float = _quantity(130.0, "1 (rad/m for the prismatic axis)", doc="u")
-    current_limit: float = _quantity(6.64, "A", doc="Imax")
-    p_gain: float = _quantity(1000.0, "V/rad (V/m)", NON_NEGATIVE, doc="P")
-    d_gain: float = _quantity(10.0, "V s/rad (V s/m)", NON_NEGATIVE, doc="D")
-    voltage_limit: float = _quantity(100.0, "V", doc="Umax")
+    resistance: float = _quantity(3.9, "Ohm", 0.001, 1e4, doc="R")
+    inductance: float = _quantity(0.0073, "H", 1e-6, 10.0, doc="L")
+    torque_constant: float = _quantity(0.4, "N m/A", 0.001, 100.0, doc="kT (also the back-EMF constant)")
+    gear_ratio: float = _quantity(130.0, "1 (rad/m for the prismatic axis)", 1.0, 1e5, doc="u")
+    current_limit: float = _quantity(6.64, "A", 0.001, 1000.0, doc="Imax")
+    p_gain: float = _quantity(1000.0, "V/rad (V/m)", 0.0, 1e6, doc="P")
+    d_gain: float = _quantity(10.0, "V s/rad (V s/m)", 0.0, 1e5, doc="D")
+    voltage_limit: float = _quantity(100.0, "V", 0.001, 1e4, doc="Umax")
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        # the explicit integrator resolves the motor's electrical transient (eigenvalue -R/L)
+        if self.inductance / self.resistance < MIN_ELECTRICAL_TIME_CONSTANT:
+            raise ValueError(
+                f"AxisParams: inductance / resistance (the electrical time constant) must be >= "
+                f"{MIN_ELECTRICAL_TIME_CONSTANT:g} s, got {self.inductance!r} H / {self.resistance!r} Ohm "
+                f"= {self.inductance / self.resistance:.3g} s (C11: 5e-4 to 1.9e-3 s)")
 
 
 def _default_axes() -> tuple[AxisParams, AxisParams, AxisParams]:
@@ -143,41 +132,37 @@ def _default_axes() -> tuple[AxisParams, AxisParams, AxisParams]:
 
 
 @dataclass(frozen=True)
-class TaskParams:
+class TaskParams(_Validated):
     """The point-to-point move of task b."""
 
     start: tuple[float, float, float] = (0.0, 0.0, 0.0)
     """q(0) [rad, rad, m]; rates and currents start at 0."""
     target: tuple[float, float, float] = (2.0, 2.0, 0.3)
     """q^ [rad, rad, m]."""
-    accuracy: float = _quantity(0.001, "rad (m)", doc="acc: reached when all |q_i - q^_i| < acc")
+    accuracy: float = _quantity(0.001, "rad (m)", 1e-9, 1.0, doc="acc: reached when all |q_i - q^_i| < acc")
 
     def __post_init__(self) -> None:
+        super().__post_init__()
         object.__setattr__(self, "start", _check_vector("TaskParams.start", self.start, "rad, rad, m"))
         object.__setattr__(self, "target", _check_vector("TaskParams.target", self.target, "rad, rad, m"))
-        _check_quantity("TaskParams.accuracy", self.accuracy, "rad (m)", POSITIVE)
-        object.__setattr__(self, "accuracy", float(self.accuracy))
 
 
 @dataclass(frozen=True)
 class ObstacleParams(_Validated):
     """The wall of task c and the seed's ``dec`` avoidance rule (seed section 3)."""
 
-    x_position: float = _quantity(0.35, "m", (-math.inf, math.inf, "open"), doc="x_obs, plane of the wall")
-    critical_distance: float = _quantity(0.02, "m", doc="d_crit")
-    height: float = _quantity(0.15, "m", (-math.inf, math.inf, "open"), doc="h_obs")
-    dec: float = _quantity(5e-5, "1", (0.0, 1.0, "closed"),
+    x_position: float = _quantity(0.35, "m", -10.0, 10.0, doc="x_obs, plane of the wall")
+    critical_distance: float = _quantity(0.02, "m", 1e-4, 1.0, doc="d_crit")
+    height: float = _quantity(0.15, "m", -10.0, 10.0, doc="h_obs")
+    dec: float = _quantity(5e-5, "1", 0.0, 1.0, low_open=True,
                            doc="factor on q1', q2' while critical; the seed's dec")
     wide_voltage_limits: tuple[float, float, float] = (200.0, 150.0, 180.0)
     """Umax_wide [V] per axis, the permitted voltage while critical (2 Umax)."""
 
     def __post_init__(self) -> None:
         super().__post_init__()
-        if self.dec <= 0.0:
-            raise ValueError(f"ObstacleParams.dec must be > 0 and <= 1 [1], got {self.dec!r}")
-        limits = _check_vector("ObstacleParams.wide_voltage_limits", self.wide_voltage_limits, "V")
-        if min(limits) <= 0:
-            raise ValueError(f"ObstacleParams.wide_voltage_limits must be > 0 [V], got {limits!r}")
+        limits = _check_vector("ObstacleParams.wide_voltage_limits", self.wide_voltage_limits, "V",
+                               0.001, 1e4)
         object.__setattr__(self, "wide_voltage_limits", limits)
 
 
@@ -194,7 +179,7 @@ class ScaraParams:
         for name, cls in (("arm", ArmParams), ("task", TaskParams), ("obstacle", ObstacleParams)):
             if not isinstance(getattr(self, name), cls):
                 raise TypeError(f"ScaraParams.{name} must be a {cls.__name__}, got {getattr(self, name)!r}")
-        axes = tuple(self.axes)
+        axes = tuple(self.axes) if isinstance(self.axes, (tuple, list)) else ()
         if len(axes) != 3 or not all(isinstance(a, AxisParams) for a in axes):
             raise TypeError(f"ScaraParams.axes must be 3 AxisParams, got {self.axes!r}")
         object.__setattr__(self, "axes", axes)
@@ -217,11 +202,21 @@ class ScaraParams:
 
     def replace(self, overrides: Mapping[str, Any] | None = None, **kwargs: Any) -> "ScaraParams":
         """A copy with dotted-path overrides, e.g. ``{"arm.load_mass": 1.0, "axes.2.p_gain": 4000}``."""
+        if overrides is not None and not isinstance(overrides, Mapping):
+            raise TypeError(f"parameter overrides must be a dict of dotted paths -> values, e.g. "
+                            f"{{'arm.load_mass': 1.0}}, got {overrides!r}")
         items = dict(overrides or {})
         items.update(kwargs)
+        for path in items:
+            if not isinstance(path, str):
+                raise TypeError(f"parameter override keys must be dotted paths such as 'arm.load_mass', "
+                                f"got {path!r}")
         result = self
         for path, value in items.items():
-            result = _replace_path(result, path.split("."), value, path)
+            try:
+                result = _replace_path(result, path.split("."), value, path)
+            except (TypeError, ValueError) as error:  # name the override, not only the class
+                raise type(error)(f"override {path!r}: {error}") from None
         return result
 
     def to_record(self) -> np.void:
@@ -262,3 +257,16 @@ def _replace_path(node: Any, parts: list[str], value: Any, full: str) -> Any:
 
 
 DEFAULT_PARAMS = ScaraParams()
+
+
+def resolve_params(params: "ScaraParams | Mapping[str, Any] | None") -> ScaraParams:
+    """A ScaraParams from None (the C11 defaults), a ScaraParams, or a dict of dotted-path
+    overrides of the defaults."""
+    if params is None:
+        return DEFAULT_PARAMS
+    if isinstance(params, ScaraParams):
+        return params
+    if isinstance(params, Mapping):
+        return DEFAULT_PARAMS.replace(params)
+    raise TypeError(f"params must be a ScaraParams or a dict of dotted-path overrides such as "
+                    f"{{'arm.load_mass': 1.0}}, got {params!r}")

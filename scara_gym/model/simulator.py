@@ -12,10 +12,11 @@ from typing import Sequence
 
 import numpy as np
 
+from scara_gym.model import checks
 from scara_gym.model import records as R
 from scara_gym.model.dynamics import tip_positions
 from scara_gym.model.integrator import advance, start
-from scara_gym.model.params import DEFAULT_PARAMS, ScaraParams
+from scara_gym.model.params import DEFAULT_PARAMS, ScaraParams, resolve_params
 
 FORMS = {"explicit": R.FORM_EXPLICIT, "implicit": R.FORM_IMPLICIT}
 CONTROLS = {"pd": R.CONTROL_PD, "voltage": R.CONTROL_VOLTAGE}
@@ -29,26 +30,17 @@ REFERENCE_ATOL = 1e-12
 
 
 def _choice(name: str, value: str, allowed: dict) -> int:
-    if value not in allowed:
-        raise ValueError(f"{name} must be one of {sorted(allowed)}, got {value!r}")
-    return allowed[value]
+    return allowed[checks.choice(name, value, allowed)]
 
 
 def check_state(name: str, value, size: int = R.N_STATE) -> np.ndarray:
-    """A finite float vector of the given size, or a ValueError naming the argument."""
-    try:
-        array = np.array(value, dtype=float).reshape(-1)
-    except (TypeError, ValueError):
-        raise ValueError(f"{name} must be {size} finite numbers, got {value!r}") from None
-    if array.shape != (size,) or not np.all(np.isfinite(array)):
-        raise ValueError(f"{name} must be {size} finite numbers, got {value!r}")
-    return array
+    """A finite float vector of the given size, or an error naming the argument."""
+    return checks.real_array(name, value, (size,)).copy()
 
 
 def check_tolerance(name: str, value: float) -> float:
-    if not (isinstance(value, (int, float)) and np.isfinite(value) and 0 < value < 1):
-        raise ValueError(f"{name} must be a number in (0, 1), got {value!r}")
-    return float(value)
+    """rtol or atol inside its allowed range (see :mod:`scara_gym.model.checks`)."""
+    return checks.tolerance(name, value)
 
 
 @dataclass(frozen=True)
@@ -138,6 +130,34 @@ class Trajectory:
         )
 
 
+MAX_STEPS_LIMIT = 10**9
+
+
+class SimulationError(RuntimeError):
+    """An integration that could not go on; the message names the cause."""
+
+
+def failure_message(status: int, robot, config, params: ScaraParams) -> str:
+    """Why an integration stopped with a negative status, and what to change."""
+    t, h = float(robot["t"]), float(robot["step_size"])
+    time_constant = min(axis.inductance / axis.resistance for axis in params.axes)
+    stiffness = (f"the smallest electrical time constant L/R is {time_constant:.3g} s; "
+                 f"rtol = {float(config['rtol']):g}, atol = {float(config['atol']):g}")
+    if status == R.STATUS_MAX_STEPS:
+        return (f"integration stopped at t = {t:.6f} s: max_steps = {int(config['max_steps'])} step "
+                f"attempts used up with the step size at {h:.3g} s. The model is too stiff or too fast "
+                f"for these parameters and tolerances ({stiffness}); loosen the tolerances, change the "
+                f"parameters, or raise max_steps")
+    if status == R.STATUS_STEP_UNDERFLOW:
+        return (f"integration stopped at t = {t:.6f} s: the step size fell to {h:.3g} s, below the "
+                f"resolution of t, while the error estimate stayed too large ({stiffness}); the "
+                f"tolerances are too tight for float64 or the right-hand side jumps there")
+    if status == R.STATUS_NOT_FINITE:
+        return (f"integration stopped at t = {t:.6f} s: the state became infinite or NaN even at a "
+                f"step size of {h:.3g} s; the parameters drive the model out of float64's range")
+    return f"integration failed with status {status} at t = {t:.6f} s"
+
+
 STATUS_NAMES = {
     R.STATUS_END: "end", R.STATUS_MAX_STEPS: "max_steps",
     R.STATUS_STEP_UNDERFLOW: "step_underflow", R.STATUS_NOT_FINITE: "not_finite",
@@ -174,33 +194,32 @@ class Simulator:
                  rtol: float = REFERENCE_RTOL, atol: float = REFERENCE_ATOL,
                  exact_switches: bool = False, max_step: float = 0.01, max_steps: int = 2_000_000,
                  record: int = 200_000, max_events: int = 10_000) -> None:
-        if not isinstance(params, ScaraParams):
-            raise TypeError(f"params must be a ScaraParams, got {type(params).__name__}")
-        self.params = params
+        self.params = params = resolve_params(params)
         self.p = np.array([params.to_record()], dtype=R.PARAMS)
         self.config = np.zeros(1, dtype=R.CONFIG)
         config = self.config[0]
         config["form"] = _choice("form", form, FORMS)
         config["control"] = _choice("control", control, CONTROLS)
         config["critical_rule"] = _choice("critical", critical, CRITICAL_MODES)
-        config["widen"] = bool(widen)
-        config["decelerate"] = bool(decelerate)
-        config["wall"] = bool(wall)
+        config["widen"] = checks.flag("widen", widen)
+        config["decelerate"] = checks.flag("decelerate", decelerate)
+        config["wall"] = checks.flag("wall", wall)
+        if isinstance(stop, str) or not isinstance(stop, (tuple, list, set, frozenset)):
+            raise TypeError(f"stop must be a tuple of stop events among {sorted(STOPS)}, got {stop!r}")
         mask = 0
         for name in stop:
             mask |= _choice("stop", name, STOPS)
         config["stops"] = mask
-        config["max_steps"] = int(max_steps)
+        config["max_steps"] = checks.integer("max_steps", max_steps, 1, MAX_STEPS_LIMIT)
         config["rtol"] = self.rtol = check_tolerance("rtol", rtol)
         config["atol"] = self.atol = check_tolerance("atol", atol)
-        config["exact_switches"] = bool(exact_switches)
-        if not (np.isfinite(max_step) and max_step > 0):
-            raise ValueError(f"max_step must be a finite number > 0 [s], got {max_step!r}")
+        config["exact_switches"] = checks.flag("exact_switches", exact_switches)
         self.robots = np.zeros(1, dtype=R.ROBOT)
         self.robot = self.robots[0]
-        self.robot["max_step"] = float(max_step)
-        self.samples = np.zeros(record, dtype=R.SAMPLE)
-        self.log = np.zeros(max_events, dtype=R.EVENT)
+        self.robot["max_step"] = checks.real("max_step", max_step, 0.0, 1.0, unit="s", low_open=True)
+        self.samples = np.zeros(checks.integer("record", record, 0, 10**8), dtype=R.SAMPLE)
+        self.log = np.zeros(checks.integer("max_events", max_events, 1, 10**8), dtype=R.EVENT)
+        self._started = False
 
     @property
     def x(self) -> np.ndarray:
@@ -217,10 +236,14 @@ class Simulator:
 
     def reset(self, x0, t0: float = 0.0, command=None) -> None:
         robot = self.robot
-        robot["x"] = check_state("initial state", x0)
-        robot["t"] = float(t0)
+        x0 = check_state("initial state", x0)
+        t0 = checks.real("t0", t0, unit="s")
+        command = None if command is None else check_state("command", command, 3)
+        robot["x"] = x0
+        robot["t"] = t0
         if command is not None:
-            robot["command"] = check_state("command", command, 3)
+            robot["command"] = command
+        self._started = True
         start(self.robots, self.p, self.config)
         robot["step_size"] = 0.0
         for counter in ("n_samples", "n_events", "n_rhs", "n_steps", "n_rejected", "stop_event", "n_collisions"):
@@ -228,11 +251,18 @@ class Simulator:
         robot["reach_time"] = np.nan
 
     def advance(self, t_end: float, command=None) -> int:
-        """Integrate to t_end or the first stop event; returns the kernel status."""
+        """Integrate to t_end or the first stop event; returns the kernel status. Raises
+        :class:`SimulationError`, naming the cause, when the integration fails."""
+        if not self._started:
+            raise RuntimeError("call reset(x0) before advance()")
+        t_end = checks.real("t_end", t_end, self.t, unit="s (not before the simulator's time)")
         if command is not None:
             self.robot["command"] = check_state("command", command, 3)
         samples = self.samples if len(self.samples) else None
-        return advance(self.robots, self.p, self.config, float(t_end), self.log, samples)
+        status = advance(self.robots, self.p, self.config, t_end, self.log, samples)
+        if status < 0:
+            raise SimulationError(failure_message(status, self.robots[0], self.config[0], self.params))
+        return status
 
     def status_name(self, status: int) -> str:
         if status == R.STATUS_STOPPED:
@@ -269,6 +299,7 @@ class Simulator:
 
 def start_state(params: ScaraParams, q0=None) -> np.ndarray:
     """Joint positions q0 (default: the task's start), rates and currents zero."""
+    params = resolve_params(params)
     x0 = np.zeros(R.N_STATE)
     x0[R.Q:R.Q + 3] = params.task.start if q0 is None else check_state("q0", q0, 3)
     return x0

@@ -16,7 +16,7 @@ from gymnasium.utils.env_checker import check_env
 import scara_gym  # noqa: F401  (registers the environment)
 from scara_gym.envs import ScaraEnv
 from scara_gym.benchmark.tasks import sample_point_to_point
-from scara_gym.model.simulator import Simulator, start_state
+from scara_gym.model.simulator import SimulationError, Simulator, start_state
 
 C11_TARGET = np.array([2.0, 2.0, 0.3])
 
@@ -291,7 +291,7 @@ def test_out_of_range_actions_are_clipped_and_counted(wild):
     (dict(collision="bounce"), ValueError, "collision must be one of"),
     (dict(control_dt=0.0), ValueError, "control_dt must be"),
     (dict(target=[2.0, 2.0, np.nan]), ValueError, "target must be 3 finite"),
-    (dict(target=[5.0, 2.0, 0.3]), ValueError, "set-point range"),
+    (dict(target=[5.0, 2.0, 0.3]), ValueError, "q1, q2 in [-pi, pi] rad"),
     (dict(params={"arm.load_mass": -1.0}), ValueError, "ArmParams.load_mass"),
     (dict(params={"arm.weight": 1.0}), KeyError, "arm.weight"),
     (dict(reward_weights={"speed": 1.0}), ValueError, "unknown terms"),
@@ -377,3 +377,11 @@ def test_the_card_matches_the_spaces_and_arguments():
         default = re.search(rf"^- {name} \(([^)]*)\)", arguments, flags=re.M).group(1)
         assert default == repr(parameter.default).replace("'", '"'), name
     assert "max_episode_steps=300" in doc and gym.spec("Scara-C11-v0").max_episode_steps == 300
+
+
+def test_an_integration_that_cannot_go_on_names_its_cause():
+    env = ScaraEnv(control_mode="voltage")
+    env.reset(seed=0)
+    env.task.config["max_steps"] = 3  # a step budget far below what one control step needs
+    with pytest.raises(SimulationError, match=r"max_steps = 3 step attempts used up"):
+        env.step(np.ones(3))

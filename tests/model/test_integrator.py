@@ -5,6 +5,8 @@ import pytest
 
 from scara_gym.benchmark.reference import scipy_point_to_point
 from scara_gym.benchmark.tasks import compare_forms, point_to_point, sample_point_to_point
+from scara_gym.model.params import DEFAULT_PARAMS
+from scara_gym.model.simulator import SimulationError, Simulator, start_state
 
 SPEC_TASK_B = 1.5703
 
@@ -62,5 +64,16 @@ def test_bad_input_is_rejected_with_a_clear_error():
         point_to_point(form="semi-implicit")
     with pytest.raises(ValueError, match="q0 must be 3 finite numbers"):
         point_to_point(q0=[0.0, np.nan, 0.0])
-    with pytest.raises(ValueError, match="rtol must be a number in"):
+    with pytest.raises(ValueError, match=r"rtol must be a finite number in \[1e-14, 0.01\]"):
         point_to_point(rtol=-1.0)
+
+
+def test_an_exhausted_step_budget_names_its_cause():
+    sim = Simulator(max_steps=50, record=0)
+    sim.reset(start_state(DEFAULT_PARAMS), command=DEFAULT_PARAMS.task.target)
+    with pytest.raises(SimulationError) as info:
+        sim.advance(1.0)
+    message = str(info.value)
+    for words in ("max_steps = 50", "step size", "electrical time constant", "rtol = 1e-10", "raise max_steps"):
+        assert words in message
+    assert 0.0 < sim.t < 1.0  # stopped where the budget ran out, not at t_end
