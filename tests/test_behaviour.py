@@ -1,6 +1,6 @@
 """Behaviour is unchanged by refactoring: digests of seeded rollouts of both environments in
-both control modes, recorded on the code before the "One house" restructuring (0.1.0), and
-the tables of ``scara-c11 reproduce`` (tests/benchmark/test_cli.py)."""
+both control modes, recorded on the code before the "One house" restructuring (0.1.0) for
+Scara-C11-v0 and at its registration for Scara-C11-v1, and the tables of ``scara-c11 reproduce`` (tests/benchmark/test_cli.py)."""
 
 import hashlib
 
@@ -31,6 +31,14 @@ RECORDED = {
     ("voltage", "SameStep"): "51c6d260deca0e478cf97b0cf26186b87a8ea0356b8d3343b6543fd5b350b217",
 }
 
+# Scara-C11-v1 (exact switches, rtol 1e-6, atol 1e-8), 2,000 single-env steps, recorded when
+# the id was registered (0.3.0): a later change of v1's behaviour needs a new id
+RECORDED_V1 = {
+    "pd": "1bab46552947034bb43bbec7a44f874caa9b6a8d9d526e31e9bdbc0b57328d6d",
+    "pd-free": "e72968e732d957aeb84477a82eee038a1f5de1431b59665a75435c1a5d12be6a",
+    "voltage": "ee540adc65830b4ce5d589f708fec46219c71bd4c2b37c38487c3c589643d248",
+}
+
 
 def _feed(digest, value):
     """Every value as float64 bytes, dicts by sorted key: obs, rewards, flags and info."""
@@ -50,8 +58,8 @@ def _actions(rng, control_mode, n):
     return rng.uniform(-1.2, 1.2, (n, 3))  # beyond [-1, 1] too: clipping is counted
 
 
-def single_env_digest(config, steps=2000, seed=0):
-    env = gym.make("Scara-C11-v0", **config)
+def single_env_digest(config, steps=2000, seed=0, env_id="Scara-C11-v0"):
+    env = gym.make(env_id, **config)
     rng = np.random.default_rng(seed)
     digest = hashlib.sha256()
     obs, info = env.reset(seed=seed)
@@ -89,6 +97,11 @@ def test_single_env_rollouts_are_bit_identical_to_the_recorded_ones(name):
 @pytest.mark.parametrize("name", CONFIGS)
 def test_vector_env_rollouts_are_bit_identical_to_the_recorded_ones(name, autoreset_mode):
     assert vector_env_digest(CONFIGS[name], autoreset_mode) == RECORDED[(name, autoreset_mode)]
+
+
+@pytest.mark.parametrize("name", CONFIGS)
+def test_v1_rollouts_are_bit_identical_to_the_recorded_ones(name):
+    assert single_env_digest(CONFIGS[name], env_id="Scara-C11-v1") == RECORDED_V1[name]
 
 
 def test_the_digest_sees_a_change():

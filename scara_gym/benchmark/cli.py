@@ -20,8 +20,10 @@ def main(argv: list[str] | None = None) -> int:
     accuracy = commands.add_parser("accuracy", help="errors at given tolerances against a tight run of the same env")
     accuracy.add_argument("--episodes", type=int, default=200, help="random episodes (default 200)")
     accuracy.add_argument("--seed", type=int, default=0, help="seed of the episode plans")
-    accuracy.add_argument("--rtol", type=float, default=1e-5, help="relative tolerance under test")
-    accuracy.add_argument("--atol", type=float, default=1e-6, help="absolute tolerance under test")
+    accuracy.add_argument("--rtol", type=float, default=1e-6, help="relative tolerance under test "
+                          "(default: Scara-C11-v1's 1e-6)")
+    accuracy.add_argument("--atol", type=float, default=1e-8, help="absolute tolerance under test "
+                          "(default: Scara-C11-v1's 1e-8)")
     args = parser.parse_args(argv)
     if args.command == "reproduce":
         if args.repeats < 1:
@@ -31,10 +33,12 @@ def main(argv: list[str] | None = None) -> int:
     elif args.command == "accuracy":
         if args.episodes < 1:
             parser.error(f"--episodes must be >= 1, got {args.episodes}")
+        from scara_gym.model import checks
         for name in ("rtol", "atol"):
-            value = getattr(args, name)
-            if not 0 < value < 1:
-                parser.error(f"--{name} must be in (0, 1), got {value}")
+            try:
+                checks.tolerance(name, getattr(args, name))
+            except ValueError as error:
+                parser.error(f"--{error}")
         from scara_gym.benchmark.accuracy import main as accuracy_main
         accuracy_main(args.episodes, args.seed, args.rtol, args.atol)
     elif args.command == "bench":

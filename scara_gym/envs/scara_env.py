@@ -1,4 +1,4 @@
-"""Scara-C11-v0: the C11 point-to-point move with the wall of task c in the way."""
+"""Scara-C11-v0 and -v1: the C11 point-to-point move with the wall of task c in the way."""
 
 from __future__ import annotations
 
@@ -132,19 +132,29 @@ class ScaraEnv(gym.Env):
       max_episode_steps = time_limit / control_dt when changing either.
     - params (None): a ScaraParams, or a dict of dotted-path overrides of the C11
       defaults, e.g. {"arm.load_mass": 1.0, "obstacle.height": 0.2}.
-    - rtol (1e-05): relative integration tolerance inside the step (scipy's meaning).
-    - atol (1e-06): absolute integration tolerance inside the step. How close these
-      defaults stay to a tight-tolerance run is measured by ``scara-c11 accuracy``.
+    - rtol (1e-05): relative integration tolerance inside the step (scipy's meaning),
+      in [1e-14, 1e-2]; Scara-C11-v1 registers 1e-6.
+    - atol (1e-06): absolute integration tolerance inside the step, in [1e-16, 1e-2];
+      Scara-C11-v1 registers 1e-8. How close a tolerance stays to a tight-tolerance run
+      is measured by ``scara-c11 accuracy``.
     - exact_switches (False): locate every mode switch inside the integration steps
       (a current limit or the PD law's saturation reached and left within one step is
-      found; the saturation is a located switch, not a kink). False keeps the 0.1
-      integration, which sees switches at the ends of steps only; a later version id
-      will make True the default.
+      found; the saturation is a located switch, not a kink); Scara-C11-v1 registers
+      True. False is the 0.1 integration of Scara-C11-v0, which sees switches at the
+      ends of integration steps only.
     - render_mode (None): "rgb_array" (headless) or "human" (needs a display).
 
     ## Version history
 
-    - v0: first release.
+    The ids differ only in the integration arguments they register (``scara_gym.ENV_VERSIONS``);
+    the class defaults are v0's.
+
+    - v1: exact switches (``exact_switches=True``) and ``rtol=1e-6``, ``atol=1e-8``: every
+      current-limit, PD-saturation, critical, wall and target switch is located inside
+      the integration steps; at these tolerances the states follow an rtol 1e-10 run within
+      the accuracy targets of ``scara-c11 accuracy`` (see the README for the figures and
+      the one exception, the voltage jump at the critical switch in "voltage" mode).
+    - v0: first release (``rtol=1e-5``, ``atol=1e-6``, ``exact_switches=False``).
     """
 
     metadata = {"render_modes": ["human", "rgb_array"], "render_fps": 100}

@@ -249,6 +249,29 @@ def _dense_slope() -> float:
 
 
 DENSE_SLOPE = _dense_slope()
+
+
+def _bend_bounds(pieces: int = 256) -> np.ndarray:
+    """M_s >= max over [0, 1] of |b_s(theta) - theta b_s(1)|, b_s stage s's dense weight: the
+    largest Bernstein coefficient over `pieces` subintervals (a rigorous bound, within 0.1 %
+    of the maximum). Since the weights sum to theta, the dense output departs from the chord
+    x + theta (y_new - x) by at most h sum_s M_s |k_s - k_0| in each state."""
+    bounds = np.zeros(len(RK_P))
+    for s, row in enumerate(RK_P):
+        power = np.zeros(5)  # coefficients of theta^0..theta^4
+        power[1:] = row
+        power[1] -= row.sum()
+        for piece in range(pieces):
+            lo, width = piece / pieces, 1.0 / pieces
+            # the polynomial on [lo, lo + width] in u in [0, 1]: Taylor shift, then Bernstein
+            local = [sum(math.comb(i, j) * power[i] * lo ** (i - j) for i in range(j, 5)) * width ** j
+                     for j in range(5)]
+            bernstein = [sum(math.comb(j, i) / math.comb(4, i) * local[i] for i in range(j + 1)) for j in range(5)]
+            bounds[s] = max(bounds[s], max(abs(c) for c in bernstein))
+    return bounds
+
+
+BEND = _bend_bounds()
 SEARCH_RESOLUTION = 1e-10  # [s] a mode switch that starts and ends within less may go unseen
 STACK_DEPTH = 64           # intervals of the in-step search (it needs about log2(h / 1e-10) + 1)
 
@@ -290,14 +313,14 @@ def first_root_affine(g0, i1, c1, i2, c2, coeffs, h, stack, bracket):
 
 
 @njit(**JIT_INLINE)
-def affine_root(g0, i1, c1, i2, c2, x, y_new, reach, h, k, coeffs, ready, stack, bracket):
-    """first_root_affine behind a cheaper test: a step over which the event function cannot
-    fall from its end values to zero, by the bound DENSE_SLOPE * reach on its slope, has no
-    root, and needs no dense coefficients (computed once per step when one is needed).
-    Returns (found, ready: the coefficients are computed)."""
+def affine_root(g0, i1, c1, i2, c2, x, y_new, bend, h, k, coeffs, ready, stack, bracket):
+    """first_root_affine behind a cheaper test: along the step the event function departs
+    from the chord between its end values by at most |c1| bend[i1] + |c2| bend[i2] (see
+    BEND), so a step whose end values both exceed that has no root, and needs no dense
+    coefficients (computed once per step when one is needed). Returns (found, ready: the
+    coefficients are computed)."""
     g1 = g0 + c1 * (y_new[i1] - x[i1]) + (c2 * (y_new[i2] - x[i2]) if i2 >= 0 else 0.0)
-    slope = DENSE_SLOPE * (abs(c1) * reach[i1] + (abs(c2) * reach[i2] if i2 >= 0 else 0.0))
-    if g1 >= 0.0 and g0 + g1 >= slope:
+    if min(g0, g1) >= abs(c1) * bend[i1] + (abs(c2) * bend[i2] if i2 >= 0 else 0.0):
         return False, ready
     return slow_root_affine(g0, i1, c1, i2, c2, h, k, coeffs, ready, stack, bracket), True
 
@@ -375,20 +398,22 @@ def first_root_lipschitz(e, g0, g1, slope, x, h, k, robot, p, config, volts, g_t
 
 @njit(**JIT)
 def search_switches(x, y_new, h, k, robot, p, config, volts, g_old, g_new, g_try, x_try, coeffs, reach,
-                    stack, bracket, brackets, triggered):
+                    bend, stack, bracket, brackets, triggered):
     """exact_switches: find every mode switch inside the accepted step [t, t + h], including
     one that starts and ends inside it, and bracket its first root for the Illinois
     refinement (brackets rows: lo, hi, g(lo), g(hi), in theta). Switches whose event
     function is affine in the state (current limits, PD saturation, wall height) are
     bracketed exactly on the dense output's quartic; the others (critical, wall side,
     target) with a bound on their slope. True when any switch was found."""
-    for i in range(CURRENT + 3):  # h max_s |k_s|: with DENSE_SLOPE, a bound on each state's slope
+    for i in range(Q, Q + 3):  # h max_s |k_s|: with DENSE_SLOPE, a bound on each position's slope
         reach[i] = abs(k[0, i])
-    for stage in range(2, 7):
-        for i in range(CURRENT + 3):
+        for stage in range(2, 7):
             reach[i] = max(reach[i], abs(k[stage, i]))
-    for i in range(CURRENT + 3):
         reach[i] *= h
+    for i in range(CURRENT + 3):
+        bend[i] = h * (BEND[2] * abs(k[2, i] - k[0, i]) + BEND[3] * abs(k[3, i] - k[0, i])
+                       + BEND[4] * abs(k[4, i] - k[0, i]) + BEND[5] * abs(k[5, i] - k[0, i])
+                       + BEND[6] * abs(k[6, i] - k[0, i]))
     ready = False  # dense coefficients computed
     pd = config.control == CONTROL_PD
     widened = is_widened(robot, config)
@@ -406,10 +431,10 @@ def search_switches(x, y_new, h, k, robot, p, config, volts, g_old, g_new, g_try
             saturated = robot.saturation[axis] != 0
             if e < 3 and robot.hold[axis] == 0:  # Imax - |I|: two affine pieces
                 imax = p.current_limit[axis]
-                found, ready = affine_root(imax - x[ii], ii, -1.0, -1, 0.0, x, y_new, reach, h, k, coeffs, ready,
+                found, ready = affine_root(imax - x[ii], ii, -1.0, -1, 0.0, x, y_new, bend, h, k, coeffs, ready,
                                            stack, bracket)
                 if not found:
-                    found, ready = affine_root(imax + x[ii], ii, 1.0, -1, 0.0, x, y_new, reach, h, k, coeffs,
+                    found, ready = affine_root(imax + x[ii], ii, 1.0, -1, 0.0, x, y_new, bend, h, k, coeffs,
                                                ready, stack, bracket)
             elif e < 3:  # held: hold * I' of the free dynamics, through the voltage and the back-EMF
                 s = robot.hold[axis]
@@ -417,27 +442,27 @@ def search_switches(x, y_new, h, k, robot, p, config, volts, g_old, g_new, g_try
                 inductance = p.inductance[axis]
                 if pd and not saturated:
                     found, ready = affine_root(g_old[e], iq, -s * gain_p / inductance, iv,
-                                               -s * (gain_d + emf) / inductance, x, y_new, reach, h, k, coeffs,
+                                               -s * (gain_d + emf) / inductance, x, y_new, bend, h, k, coeffs,
                                                ready, stack, bracket)
                 else:
-                    found, ready = affine_root(g_old[e], iv, -s * emf / inductance, -1, 0.0, x, y_new, reach, h,
+                    found, ready = affine_root(g_old[e], iv, -s * emf / inductance, -1, 0.0, x, y_new, bend, h,
                                                k, coeffs, ready, stack, bracket)
             elif pd:  # PD saturation, u = P (q^ - q) - D q'
                 if not saturated:  # limit - |u|: two affine pieces
                     limit = voltage_limit(p, axis, widened)
                     u = pd_linear_voltage(robot, x, p, axis)
-                    found, ready = affine_root(limit - u, iq, gain_p, iv, gain_d, x, y_new, reach, h, k, coeffs,
+                    found, ready = affine_root(limit - u, iq, gain_p, iv, gain_d, x, y_new, bend, h, k, coeffs,
                                                ready, stack, bracket)
                     if not found:
-                        found, ready = affine_root(limit + u, iq, -gain_p, iv, -gain_d, x, y_new, reach, h, k,
+                        found, ready = affine_root(limit + u, iq, -gain_p, iv, -gain_d, x, y_new, bend, h, k,
                                                    coeffs, ready, stack, bracket)
                 else:
                     s = robot.saturation[axis]
-                    found, ready = affine_root(g_old[e], iq, -s * gain_p, iv, -s * gain_d, x, y_new, reach, h, k,
+                    found, ready = affine_root(g_old[e], iq, -s * gain_p, iv, -s * gain_d, x, y_new, bend, h, k,
                                                coeffs, ready, stack, bracket)
         elif e == E_HEIGHT:
             found, ready = affine_root(g_old[e], Q + 2, 1.0 if robot.above == 1 else -1.0, -1, 0.0, x, y_new,
-                                       reach, h, k, coeffs, ready, stack, bracket)
+                                       bend, h, k, coeffs, ready, stack, bracket)
         elif (e == E_CRITICAL and config.critical_rule != CRIT_SWITCH) or (e == E_SIDE and not config.wall):
             continue  # constant: the mode cannot switch
         else:
@@ -525,7 +550,7 @@ def integrate(robot, p, config, t_end, log, samples):
     reached.
     """
     n = N_STATE
-    work = np.empty((17, n))  # the allocations of a call (it runs once per control step), all fixed-size
+    work = np.empty((18, n))  # the allocations of a call (it runs once per control step), all fixed-size
     k = work[:7]
     y_new = work[7]
     y_stage = work[8]
@@ -534,6 +559,7 @@ def integrate(robot, p, config, t_end, log, samples):
     err_vec = work[11]
     coeffs = work[12:16]
     reach = work[16]
+    bend = work[17]
     small = np.empty((9, N_EVENTS))
     g_old = small[0]
     g_new = small[1]
@@ -618,7 +644,7 @@ def integrate(robot, p, config, t_end, log, samples):
         event_values(y_new, robot, p, config, volts, g_new)
         if config.exact_switches:
             any_event = search_switches(x, y_new, h_step, k, robot, p, config, volts, g_old, g_new, g_try,
-                                        x_event, coeffs, reach, stack, bracket, brackets, triggered)
+                                        x_event, coeffs, reach, bend, stack, bracket, brackets, triggered)
         else:  # sign changes at the step's ends only
             any_event = False
             for e in range(N_EVENTS):

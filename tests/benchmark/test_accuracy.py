@@ -25,6 +25,12 @@ def test_the_sample_covers_every_program_both_modes_and_the_obstacle():
     assert {plan.env_kwargs["obstacle"] for plan in SAMPLE} == {True, False}
 
 
+def test_the_default_tolerances_are_those_of_scara_c11_v1():
+    import scara_gym
+    v1 = scara_gym.ENV_VERSIONS["Scara-C11-v1"]
+    assert (accuracy.DEFAULT_RTOL, accuracy.DEFAULT_ATOL) == (v1["rtol"], v1["atol"]) and v1["exact_switches"]
+
+
 def test_exact_switches_meet_the_targets_at_the_default_tolerances(exact_rows):
     for row in exact_rows:
         assert row["unpaired_events"] == 0, row  # every switch of the tight run is found, no other
@@ -55,14 +61,15 @@ def test_accuracy_command_prints_both_tables(capsys):
     from scara_gym.benchmark.cli import main
     assert main(["accuracy", "--episodes", "2"]) == 0
     out = capsys.readouterr().out
-    assert "Accuracy with exact switches at rtol 1e-05, atol 1e-06" in out
+    assert "Accuracy with exact switches at rtol 1e-06, atol 1e-08" in out  # Scara-C11-v1's
     assert "switches at step ends (exact_switches=False)" in out
     assert out.count("| event_time [s] | 1e-06 |") == 2
 
 
 @pytest.mark.parametrize("argv, words", [
     (["accuracy", "--episodes", "0"], "--episodes must be >= 1"),
-    (["accuracy", "--rtol", "1.5"], "--rtol must be in (0, 1)"),
+    (["accuracy", "--rtol", "1.5"], "--rtol must be a finite number in [1e-14, 0.01], got 1.5"),
+    (["accuracy", "--atol", "0"], "--atol must be a finite number in [1e-16, 0.01], got 0.0"),
 ])
 def test_accuracy_command_rejects_bad_arguments(argv, words, capsys):
     from scara_gym.benchmark.cli import main

@@ -33,7 +33,8 @@ def test_reproduce_prints_the_tables_and_writes_the_figures(tmp_path, capsys):
 def test_bench_quick_runs_and_reports_ratios(capsys):
     assert main(["bench", "--quick"]) == 0
     out = capsys.readouterr().out
-    for section in ("x Pendulum-v1", "| Scara-C11-v0, voltage |", "| voltage | 64 |", "| pd | 64 |",
+    for section in ("x Pendulum-v1", "| Scara-C11-v0, voltage |", "| Scara-C11-v1, pd |",
+                    "| Scara-C11-v0 | voltage | 64 |", "| Scara-C11-v1 | pd | 64 |",
                     "Integration tolerance", "| 1e-05 | 1e-06 |", "Peak memory", "cold (empty JIT cache)"):
         assert section in out
     assert "scipy solve_ivp RK45" in out and "scara_gym compiled DOPRI5, implicit" in out

@@ -1,5 +1,6 @@
 """Scara-C11-v0: API conventions, the task-b equivalence, collisions, the card, bad input."""
 
+import ast
 import inspect
 import os
 import itertools
@@ -385,3 +386,42 @@ def test_an_integration_that_cannot_go_on_names_its_cause():
     env.task.config["max_steps"] = 3  # a step budget far below what one control step needs
     with pytest.raises(SimulationError, match=r"max_steps = 3 step attempts used up"):
         env.step(np.ones(3))
+
+
+@pytest.mark.parametrize("env_id", scara_gym.ENV_IDS)
+def test_each_registered_id_fixes_its_integration_arguments(env_id):
+    fixed = scara_gym.ENV_VERSIONS[env_id]
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", DeprecationWarning)  # v0 is out of date, on purpose
+        task = gym.make(env_id).unwrapped.task
+        vector_task = gym.make_vec(env_id, num_envs=2, vectorization_mode="vector_entry_point").task
+    for task_ in (task, vector_task):
+        assert {name: getattr(task_, name) for name in fixed} == fixed
+    assert gym.spec(env_id).max_episode_steps == 300
+    version = env_id.rsplit("-", 1)[1]
+    history = ScaraEnv.__doc__[ScaraEnv.__doc__.index("## Version history"):]
+    line = re.search(rf"^    - {version}: (.*?)(?=^    - |\Z)", history, flags=re.M | re.S).group(1)
+    stated = dict(re.findall(r"``(\w+)=([^`]+)``", line))
+    assert {name: ast.literal_eval(stated[name]) for name in fixed} == fixed  # the card's line says what the id fixes
+
+
+def test_v1_is_deterministic_for_a_seed_and_passes_check_env():
+    runs = []
+    for _ in range(2):
+        env = gym.make("Scara-C11-v1", control_mode="voltage", randomize_target=True)
+        obs, _ = env.reset(seed=11)
+        rng = np.random.default_rng(11)
+        trace = [obs]
+        for _ in range(150):
+            obs, reward, terminated, truncated, _ = env.step(rng.uniform(-1, 1, 3).astype(np.float32))
+            trace.append(np.append(obs, reward))
+            if terminated or truncated:
+                break
+        runs.append(np.concatenate(trace))
+    assert np.array_equal(runs[0], runs[1])
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        env = gym.make("Scara-C11-v1").unwrapped
+        env.metadata = {**env.metadata, "render_modes": ["rgb_array"]}  # headless: see above
+        check_env(env)
+    assert [str(w.message) for w in caught] == []
