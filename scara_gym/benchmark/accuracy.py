@@ -20,11 +20,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from scara_gym import ENV_VERSIONS, LATEST_ENV_ID
 from scara_gym.model import records as R
 
 REFERENCE_TOLERANCES = (1e-10, 1e-12)
-# the tolerances under test by default: those Scara-C11-v1 registers (scara_gym.ENV_VERSIONS)
-DEFAULT_RTOL, DEFAULT_ATOL = 1e-6, 1e-8
+# the tolerances under test by default: those Scara-C11-v1 registers
+DEFAULT_RTOL = ENV_VERSIONS[LATEST_ENV_ID]["rtol"]
+DEFAULT_ATOL = ENV_VERSIONS[LATEST_ENV_ID]["atol"]
 # the targets of the issue "Exact at the default tolerance", per control step
 TARGETS = {"q": 1e-5, "rate": 1e-4, "current": 1e-4, "event_time": 1e-6}
 PROGRAMS = ("random", "sinusoid", "bang-bang", "setpoints")

@@ -7,7 +7,7 @@ from pathlib import Path
 
 
 def main(argv: list[str] | None = None) -> int:
-    from scara_gym import __version__
+    from scara_gym import ENV_VERSIONS, LATEST_ENV_ID, __version__
 
     parser = argparse.ArgumentParser(prog="scara-c11", description="ARGESIM C11 SCARA robot benchmark")
     parser.add_argument("--version", action="version", version=f"scara-c11 (scara_gym) {__version__}")
@@ -20,10 +20,11 @@ def main(argv: list[str] | None = None) -> int:
     accuracy = commands.add_parser("accuracy", help="errors at given tolerances against a tight run of the same env")
     accuracy.add_argument("--episodes", type=int, default=200, help="random episodes (default 200)")
     accuracy.add_argument("--seed", type=int, default=0, help="seed of the episode plans")
-    accuracy.add_argument("--rtol", type=float, default=1e-6, help="relative tolerance under test "
-                          "(default: Scara-C11-v1's 1e-6)")
-    accuracy.add_argument("--atol", type=float, default=1e-8, help="absolute tolerance under test "
-                          "(default: Scara-C11-v1's 1e-8)")
+    v1 = ENV_VERSIONS[LATEST_ENV_ID]
+    accuracy.add_argument("--rtol", type=float, default=v1["rtol"], help="relative tolerance under test "
+                          f"(default: {LATEST_ENV_ID}'s {v1['rtol']:g})")
+    accuracy.add_argument("--atol", type=float, default=v1["atol"], help="absolute tolerance under test "
+                          f"(default: {LATEST_ENV_ID}'s {v1['atol']:g})")
     args = parser.parse_args(argv)
     if args.command == "reproduce":
         if args.repeats < 1:

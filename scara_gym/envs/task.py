@@ -168,7 +168,7 @@ class ScaraTask:
         self.atol = check_tolerance("atol", atol)
         self.exact_switches = checks.flag("exact_switches", exact_switches)
         num_robots = checks.integer("num_robots", num_robots, 1, MAX_ROBOTS)
-        self.default_target = self.check_target(target if target is not None else self.params.task.target, "target")
+        self.default_target = self.check_joints(target if target is not None else self.params.task.target, "target")
         self.default_start = self.check_joints(start if start is not None else self.params.task.start, "start")
         self.setpoint_center = SETPOINT_CENTER
         self.setpoint_half = SETPOINT_HALF
@@ -241,16 +241,13 @@ class ScaraTask:
         return checks.real_array(name, value, (3,), unit="rad, rad, m", low=JOINT_LOW, high=JOINT_HIGH,
                                  range_text=JOINT_RANGE_TEXT)
 
-    def check_target(self, target, name: str) -> np.ndarray:
-        return self.check_joints(target, name)
-
     # -- episodes ------------------------------------------------------------------------
     def episode_start(self, rng: np.random.Generator, options: dict | None) -> tuple[np.ndarray, np.ndarray]:
         """(start, target) of a new episode from the reset options and the episode RNG."""
         options = checks.mapping("reset options", options, ("target", "start"))
         start = self.check_joints(options["start"], "options['start']") if "start" in options else self.default_start
         if "target" in options:
-            target = self.check_target(options["target"], "options['target']")
+            target = self.check_joints(options["target"], "options['target']")
         elif self.randomize_target:
             target = draw_target(rng, start, self.params, self.obstacle)
         else:

@@ -622,21 +622,14 @@ def integrate(robot, p, config, t_end, log, samples):
                                    + E6 * k[5, i] + E7 * k[6, i])
             scale[i] = atol + rtol * max(abs(x[i]), abs(y_new[i]))
         err = rms_norm(err_vec, scale)
-        if not math.isfinite(err):
-            h = 0.1 * h_step
+        finite = math.isfinite(err)
+        if not finite or err > 1.0:  # rejected: a non-finite state shrinks the step tenfold
+            h = h_step * max(MIN_FACTOR, SAFETY * err ** -0.2) if finite else 0.1 * h_step
             robot.n_rejected += 1
             if h < 1e-14 * max(1.0, abs(t)):
                 robot.step_size = h
                 robot.t = t
-                return STATUS_NOT_FINITE
-            continue
-        if err > 1.0:
-            h = h_step * max(MIN_FACTOR, SAFETY * err ** -0.2)
-            robot.n_rejected += 1
-            if h < 1e-14 * max(1.0, abs(t)):
-                robot.step_size = h
-                robot.t = t
-                return STATUS_STEP_UNDERFLOW
+                return STATUS_STEP_UNDERFLOW if finite else STATUS_NOT_FINITE
             continue
         robot.n_steps += 1
         factor = MAX_FACTOR if err == 0.0 else min(MAX_FACTOR, SAFETY * err ** -0.2)
