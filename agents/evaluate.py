@@ -5,7 +5,9 @@
 
 Policy specs: ``pd``; ``dec-continue[:d]`` and ``dec-restart[:d]`` (the seed's heuristic
 with trigger distance d [m]); ``ppo:NAME`` (a shipped model, e.g. ``ppo_pd``) or
-``ppo:DIR`` (a model saved by agents.train). Writes, under ``--out`` only: ``table.md``,
+``ppo:DIR`` (a model saved by agents.train); ``sb3:DIR`` (any run of agents.training:
+PPO, SAC, TD3); ``optimal`` (the minimum-time reference of agents.optimal, "voltage" mode,
+best on ``--env-id Scara-C11-v1``, the physics it was verified on). Writes, under ``--out`` only: ``table.md``,
 ``table.csv``, ``tip_paths.png``, ``wall_and_height.png``, ``NAME_results.json`` for each
 PPO model (the format of a shipped model's ``results.json``) and, for PPO models with
 evaluation logs, ``learning_curves.png``.
@@ -22,6 +24,7 @@ from pathlib import Path
 import numpy as np
 
 from agents.policies import DecHeuristic, PDPolicy, run_episode
+from scara_gym import ENV_ID, ENV_IDS
 
 COLUMNS = ("policy", "episodes", "success rate", "collision rate", "mean time to target [s]",
            "worst time to target [s]", "energy [J]", "peak current [Imax]", "return")
@@ -39,11 +42,21 @@ def make_policy(spec: str, env):
         if not arg:
             raise ValueError("ppo policies are given as ppo:NAME (shipped) or ppo:MODEL_DIR")
         return PPOPolicy(env, arg)
-    raise ValueError(f"unknown policy {spec!r}; use pd, dec-continue[:d], dec-restart[:d] or ppo:NAME_OR_DIR")
+    if kind == "sb3":
+        from agents.training import SB3Policy
+        if not arg:
+            raise ValueError("sb3 policies are given as sb3:RUN_DIR (a folder written by agents.training)")
+        return SB3Policy(env, arg)
+    if kind == "optimal":
+        from agents.optimal import OptimalPolicy
+        return OptimalPolicy(env)
+    raise ValueError(f"unknown policy {spec!r}; use pd, dec-continue[:d], dec-restart[:d], optimal, "
+                     "ppo:NAME_OR_DIR or sb3:RUN_DIR")
 
 
 def evaluate(policies: list[str], control_mode: str = "pd", randomize_target: bool = False,
-             episodes: int = 100, seed: int = 1000, record: int = 3) -> tuple[list[dict], dict]:
+             episodes: int = 100, seed: int = 1000, record: int = 3,
+             env_id: str = ENV_ID) -> tuple[list[dict], dict]:
     """Summary rows and recorded traces (first `record` episodes) per policy."""
     import gymnasium as gym
 
@@ -51,7 +64,7 @@ def evaluate(policies: list[str], control_mode: str = "pd", randomize_target: bo
 
     rows, traces = [], {}
     for spec in policies:
-        env = gym.make("Scara-C11-v0", control_mode=control_mode, randomize_target=randomize_target)
+        env = gym.make(env_id, control_mode=control_mode, randomize_target=randomize_target)
         policy = make_policy(spec, env)
         results = [run_episode(env, policy, seed=seed + i, record=i < record) for i in range(episodes)]
         traces[policy.name] = [r["trace"] for r in results[:record]]
@@ -151,6 +164,8 @@ def main(argv: list[str] | None = None) -> list[dict]:
 
     parser = argparse.ArgumentParser(prog="python -m agents.evaluate", description=__doc__.split("\n\n")[0])
     parser.add_argument("--policies", nargs="+", default=["pd", "dec-continue", "dec-restart"])
+    parser.add_argument("--env-id", choices=ENV_IDS, default=ENV_ID,
+                        help="the shipped PPO agents and tables use Scara-C11-v0; the optimal reference Scara-C11-v1")
     parser.add_argument("--control-mode", choices=("pd", "voltage"), default="pd")
     parser.add_argument("--randomize-target", action="store_true")
     parser.add_argument("--episodes", type=int, default=100)
@@ -159,7 +174,8 @@ def main(argv: list[str] | None = None) -> list[dict]:
     args = parser.parse_args(argv)
     if args.episodes < 1:
         parser.error(f"--episodes must be >= 1, got {args.episodes}")
-    rows, traces = evaluate(args.policies, args.control_mode, args.randomize_target, args.episodes, args.seed)
+    rows, traces = evaluate(args.policies, args.control_mode, args.randomize_target, args.episodes, args.seed,
+                            env_id=args.env_id)
     model_dirs = [resolve_model(spec.split(":", 1)[1]) for spec in args.policies if spec.startswith("ppo:")]
     write_outputs(rows, traces, args.out, model_dirs, DEFAULT_PARAMS)
     for spec, row in zip(args.policies, rows):

@@ -18,17 +18,19 @@ one by name from anywhere, and training never writes there.
 from __future__ import annotations
 
 import argparse
-import json
-import time
 from pathlib import Path
 
 import numpy as np
 import yaml
 
+from stable_baselines3.common.vec_env import VecEnvWrapper
+
+from agents.training import SB3Policy
+from agents.training import train as run_training
 from scara_gym import ENV_ID
 from scara_gym.envs import OBSERVATION_LAYOUT, ScaraTask
 
-HYPERPARAMS = Path(__file__).with_name("hyperparams") / "ppo.yml"
+HYPERPARAMS = Path(__file__).with_name("hyperparams") / "ppo_residual.yml"
 SHIPPED_MODELS = Path(__file__).with_name("models")
 Q, TARGET_ERROR = OBSERVATION_LAYOUT["q"], OBSERVATION_LAYOUT["target_error"]
 
@@ -81,134 +83,55 @@ class ResidualSetpoint:
         return self.task.pd_action(obs, setpoint)
 
 
-def make_training_env(env_kwargs: dict, hyper: dict, seed: int):
-    from stable_baselines3.common.vec_env import VecEnvWrapper, VecNormalize
+class ResidualVecEnv(VecEnvWrapper):
+    """The agent's outputs r become the wrapped VecEnv's actions through a ResidualSetpoint."""
 
-    from scara_gym.sb3 import SB3VecEnv
+    def __init__(self, venv, mapping: ResidualSetpoint) -> None:
+        super().__init__(venv)
+        self.mapping = mapping
+        self.last_obs = None
 
-    class Residual(VecEnvWrapper):
-        def __init__(self, venv, mapping):
-            super().__init__(venv)
-            self.mapping = mapping
-            self.last_obs = None
+    def reset(self):
+        self.last_obs = self.venv.reset()
+        return self.last_obs
 
-        def reset(self):
-            self.last_obs = self.venv.reset()
-            return self.last_obs
+    def step_async(self, actions):
+        self.venv.step_async(self.mapping(self.last_obs, actions))
 
-        def step_async(self, actions):
-            self.venv.step_async(self.mapping(self.last_obs, actions))
-
-        def step_wait(self):
-            obs, rewards, dones, infos = self.venv.step_wait()
-            self.last_obs = obs
-            return obs, rewards, dones, infos
-
-    # one numba thread: torch's threads take the cores between environment steps (see README)
-    venv = SB3VecEnv(num_envs=hyper["n_envs"], num_threads=hyper.get("env_threads", 1), **env_kwargs)
-    venv.seed(seed)
-    mapping = ResidualSetpoint(venv.venv.task, hyper["residual_scale"], hyper.get("residual_deadzone", 0.0))
-    venv = Residual(venv, mapping)  # the adapter reports Monitor-style episode statistics
-    return VecNormalize(venv, norm_obs=hyper["norm_obs"], norm_reward=hyper["norm_reward"], gamma=hyper["gamma"]), Residual, mapping
+    def step_wait(self):
+        obs, rewards, dones, infos = self.venv.step_wait()
+        self.last_obs = obs
+        return obs, rewards, dones, infos
 
 
 def train(control_mode: str = "pd", randomize_target: bool = False, seed: int = 0,
           total_timesteps: int | None = None, out: str | Path = "runs/ppo_pd",
           hyperparams: dict | None = None, eval_freq: int = 25_000, eval_episodes: int = 10,
           progress_bar: bool = True, env_id: str = ENV_ID) -> Path:
-    """Train PPO; writes model.zip, vecnormalize.pkl, config.json, checkpoints/, eval/ and tb/."""
-    import gymnasium as gym
-    from stable_baselines3 import PPO
-    from stable_baselines3.common.callbacks import CheckpointCallback, EvalCallback
-    from stable_baselines3.common.monitor import Monitor
-    from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
-
+    """Train the engineered PPO agent (agents.training.train with the residual set-point);
+    writes model.zip, vecnormalize.pkl, config.json, checkpoints/, eval/ and tb/, and
+    resumes from its snapshot when run again into the same folder."""
     hyper = (load_hyperparams(env_id, control_mode, randomize_target=randomize_target)
              if hyperparams is None else dict(hyperparams))
+    hyper.setdefault("eval_freq", eval_freq)
+    hyper.setdefault("eval_episodes", eval_episodes)
+    hyper.setdefault("checkpoint_freq", 100_000)
+    hyper.setdefault("normalize", {"norm_obs": hyper.pop("norm_obs", True), "norm_reward": hyper.pop("norm_reward", True)})
+    hyper["env_kwargs"] = {"randomize_target": randomize_target, **hyper.get("env_kwargs", {})}
     total_timesteps = int(total_timesteps or hyper["n_timesteps"])
-    out = Path(out).resolve()
-    if SHIPPED_MODELS.resolve() in (out, *out.parents):
-        raise ValueError(f"training writes under runs/ or --out, never into the shipped models ({out})")
-    out.mkdir(parents=True, exist_ok=True)
-    env_kwargs = {"control_mode": control_mode, "randomize_target": randomize_target,
-                  **hyper.get("env_kwargs", {})}
-
-    # 1. training env: the native vector env, residual set-points, episode stats, normalization
-    venv, Residual, mapping = make_training_env(env_kwargs, hyper, seed)
-
-    # 2. evaluation env: one Monitor-wrapped gym.make env with the same mapping and (frozen)
-    #    normalization statistics, synchronized by EvalCallback
-    eval_env = DummyVecEnv([lambda: Monitor(gym.make(env_id, **env_kwargs))])
-    eval_env.seed(seed + 10_000)
-    eval_env = VecNormalize(Residual(eval_env, mapping), norm_obs=hyper["norm_obs"], norm_reward=False,
-                            training=False, gamma=hyper["gamma"])
-
-    # 3. the agent
-    model = PPO(
-        "MlpPolicy", venv, n_steps=hyper["n_steps"], batch_size=hyper["batch_size"],
-        n_epochs=hyper["n_epochs"], gamma=hyper["gamma"], gae_lambda=hyper["gae_lambda"],
-        learning_rate=hyper["learning_rate"], clip_range=hyper["clip_range"],
-        ent_coef=hyper["ent_coef"], max_grad_norm=hyper["max_grad_norm"],
-        policy_kwargs={"net_arch": list(hyper["net_arch"]), "log_std_init": hyper["log_std_init"]},
-        tensorboard_log=str(out / "tb"), seed=seed, device="cpu", verbose=0)
-
-    # 4. learn, with checkpoints and periodic deterministic evaluation
-    per_env = max(1, eval_freq // hyper["n_envs"])
-    callbacks = [
-        CheckpointCallback(per_env * 4, str(out / "checkpoints"), name_prefix="ppo",
-                           save_vecnormalize=True),
-        EvalCallback(eval_env, n_eval_episodes=eval_episodes, eval_freq=per_env,
-                     log_path=str(out / "eval"), best_model_save_path=str(out / "best"),
-                     deterministic=True, verbose=0),
-    ]
-    started = time.perf_counter()
-    model.learn(total_timesteps=total_timesteps, callback=callbacks, progress_bar=progress_bar)
-
-    # 5. save the model with its normalization statistics and how it was made
-    model.save(out / "model.zip")
-    venv.save(str(out / "vecnormalize.pkl"))
-    config = {"env_id": env_id, "env_kwargs": env_kwargs, "seed": seed, "total_timesteps": total_timesteps,
-              "hyperparams": hyper, "train_seconds": time.perf_counter() - started,
-              "command": f"python -m agents.train --control-mode {control_mode} --seed {seed} "
-                         f"--total-timesteps {total_timesteps}"
-                         + (" --randomize-target" if randomize_target else "") + f" --out {out}"}
-    (out / "config.json").write_text(json.dumps(config, indent=2))
-    return out
+    command = (f"python -m agents.train --env-id {env_id} --control-mode {control_mode} --seed {seed} "
+               f"--total-timesteps {total_timesteps}" + (" --randomize-target" if randomize_target else "")
+               + f" --out {out}")
+    return run_training("ppo", out, env_id, control_mode, seed, hyper, total_timesteps, progress_bar, command)
 
 
-class PPOPolicy:
-    """A saved PPO agent as an obs -> action policy for one environment (agents.policies API)."""
+class PPOPolicy(SB3Policy):
+    """A saved PPO agent (a folder, or a shipped model's name) as an obs -> action policy."""
 
     def __init__(self, env, model_dir: str | Path) -> None:
-        import pickle
-
-        from stable_baselines3 import PPO
-
         model_dir = resolve_model(model_dir)
-        self.env = env.unwrapped if hasattr(env, "unwrapped") else env
-        config = json.loads((model_dir / "config.json").read_text())
-        if config["env_kwargs"]["control_mode"] != self.env.control_mode:
-            raise ValueError(f"{model_dir} was trained in {config['env_kwargs']['control_mode']!r} mode, "
-                             f"the environment is in {self.env.control_mode!r} mode")
-        self.model = PPO.load(model_dir / "model.zip", device="cpu")
-        with open(model_dir / "vecnormalize.pkl", "rb") as f:
-            normalizer = pickle.load(f)
-        self.obs_rms, self.clip_obs, self.epsilon = normalizer.obs_rms, normalizer.clip_obs, normalizer.epsilon
-        self.norm_obs = normalizer.norm_obs
-        hyper = config["hyperparams"]
-        self.mapping = ResidualSetpoint(self.env.task, hyper["residual_scale"], hyper.get("residual_deadzone", 0.0))
+        super().__init__(env, model_dir)
         self.name = f"ppo ({model_dir.name})"
-
-    def reset(self) -> None:
-        pass
-
-    def __call__(self, obs: np.ndarray) -> np.ndarray:
-        x = np.asarray(obs, dtype=np.float64)
-        if self.norm_obs:
-            x = np.clip((x - self.obs_rms.mean) / np.sqrt(self.obs_rms.var + self.epsilon),
-                        -self.clip_obs, self.clip_obs)
-        r, _ = self.model.predict(x.astype(np.float32), deterministic=True)
-        return self.mapping(obs, r)[0]
 
 
 def main(argv: list[str] | None = None) -> Path:

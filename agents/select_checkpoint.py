@@ -24,12 +24,13 @@ def evaluate_checkpoints(run: Path, episodes: int = 5, seed: int = 5000) -> list
     import scara_gym  # noqa: F401
     from agents.policies import run_episode
     from agents.ppo import PPOPolicy
+    from scara_gym import ENV_ID
 
     config = json.loads((run / "config.json").read_text())
     kwargs = {k: config["env_kwargs"][k] for k in ("control_mode", "randomize_target")}
-    env = gym.make("Scara-C11-v0", **kwargs)
+    env = gym.make(config.get("env_id", ENV_ID), **kwargs)
     rows = []
-    checkpoints = sorted(run.glob("checkpoints/ppo_*_steps.zip"), key=lambda p: int(p.stem.split("_")[1]))
+    checkpoints = sorted(run.glob("checkpoints/ppo_[0-9]*_steps.zip"), key=lambda p: int(p.stem.split("_")[1]))
     with tempfile.TemporaryDirectory() as scratch:
         for checkpoint in checkpoints:
             steps = int(checkpoint.stem.split("_")[1])

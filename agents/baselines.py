@@ -1,0 +1,100 @@
+"""``python -m agents.baselines``: every training run of the comparison, resumable.
+
+    python -m agents.baselines --algos ppo sac td3 ppo-residual --seeds 0 1 2 3 4
+    python -m agents.baselines --algos sac --seeds 0 1 2 3 4 --shard 1/2   # every 2nd run, from the 2nd
+
+Runs land in ``RUNS/ENV_ID/MODE/ALGO/seedN`` (``--runs``, default ``runs/baselines``). A
+finished run is skipped; an interrupted one resumes from its snapshot (agents.training), so
+the campaign can be stopped and started again, across sessions. ``ppo``, ``sac`` and ``td3``
+are the standard algorithms on the environment as users get it (hyperparameters in
+``agents/hyperparams/ALGO.yml``); ``ppo-residual`` is the engineered agent of agents/ppo.py
+(``ppo_residual.yml``). ``--shard K/N`` takes every N-th run starting at the K-th, so
+that N processes can share the list (one per core); without it, workers started side by
+side share it too: each run is locked (``RUN/.lock``) by the process training it, and a
+worker passes over runs that are finished or locked.
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import fcntl
+import json
+import time
+from pathlib import Path
+
+from scara_gym import LATEST_ENV_ID
+
+ALGOS = ("ppo", "sac", "td3", "ppo-residual")
+
+
+def run_dir(runs: Path, env_id: str, control_mode: str, algo: str, seed: int) -> Path:
+    return Path(runs) / env_id / control_mode / algo / f"seed{seed}"
+
+
+@contextlib.contextmanager
+def run_lock(out: Path):
+    """Yields True while this process holds the run's lock, False if another one does."""
+    out.mkdir(parents=True, exist_ok=True)
+    with open(out / ".lock", "w") as handle:
+        try:
+            fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            yield False
+            return
+        try:
+            yield True
+        finally:
+            fcntl.flock(handle, fcntl.LOCK_UN)
+
+
+def train_one(algo: str, seed: int, runs: Path, env_id: str = LATEST_ENV_ID, control_mode: str = "pd",
+              total_timesteps: int | None = None) -> Path:
+    out = run_dir(runs, env_id, control_mode, algo, seed)
+    command = (f"python -m agents.baselines --algos {algo} --seeds {seed} --env-id {env_id} "
+               f"--control-mode {control_mode} --runs {runs}")
+    if algo == "ppo-residual":
+        from agents.ppo import train
+
+        return train(control_mode, seed=seed, total_timesteps=total_timesteps, out=out, progress_bar=False,
+                     env_id=env_id)
+    from agents.training import train
+
+    return train(algo, out, env_id, control_mode, seed, total_timesteps=total_timesteps, command=command)
+
+
+def main(argv: list[str] | None = None) -> list[Path]:
+    parser = argparse.ArgumentParser(prog="python -m agents.baselines", description=__doc__.split("\n\n")[0])
+    parser.add_argument("--algos", nargs="+", choices=ALGOS, default=list(ALGOS))
+    parser.add_argument("--seeds", nargs="+", type=int, default=[0, 1, 2, 3, 4])
+    parser.add_argument("--env-id", default=LATEST_ENV_ID)
+    parser.add_argument("--control-mode", choices=("pd", "voltage"), default="pd")
+    parser.add_argument("--runs", type=Path, default=Path("runs/baselines"))
+    parser.add_argument("--total-timesteps", type=int, default=None, help="default: n_timesteps of the YAML")
+    parser.add_argument("--shard", default="0/1", help="K/N: every N-th run, starting at the K-th (0-based)")
+    args = parser.parse_args(argv)
+    try:
+        shard, shards = (int(x) for x in args.shard.split("/"))
+        assert 0 <= shard < shards
+    except (ValueError, AssertionError):
+        parser.error(f"--shard must be K/N with 0 <= K < N, got {args.shard!r}")
+    if any(seed < 0 for seed in args.seeds):
+        parser.error(f"--seeds must be integers >= 0, got {args.seeds}")
+    plan = [(algo, seed) for seed in args.seeds for algo in args.algos][shard::shards]
+    done = []
+    for algo, seed in plan:
+        started = time.perf_counter()
+        with run_lock(run_dir(args.runs, args.env_id, args.control_mode, algo, seed)) as mine:
+            if not mine:
+                print(f"{algo} seed {seed}: trained by another process, passed over", flush=True)
+                continue
+            out = train_one(algo, seed, args.runs, args.env_id, args.control_mode, args.total_timesteps)
+        config = json.loads((out / "config.json").read_text())
+        print(f"{algo} seed {seed}: {out} ({config['train_seconds']:.0f} s of training, "
+              f"{time.perf_counter() - started:.0f} s in this call)", flush=True)
+        done.append(out)
+    return done
+
+
+if __name__ == "__main__":
+    main()

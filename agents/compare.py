@@ -1,0 +1,327 @@
+"""``python -m agents.compare``: learned vs classical vs optimal, over the same evaluation seeds.
+
+    python -m agents.compare --runs runs/baselines --episodes 100 --out docs/results
+
+Every policy runs the same episodes (seeds 1000..) of ``Scara-C11-v1`` in every condition:
+
+- policies: ``pd`` (the classical baseline), the seed's ``dec`` heuristic in both variants
+  at its smallest safe trigger distance (bisected in each condition) and with a 20 % margin,
+  ``optimal`` (agents.optimal, "voltage" mode; skipped with randomized targets, which would
+  need one solve per target), and every learned run under ``--runs ENV_ID/MODE/ALGO/seedN``
+  (agents.baselines), one entry per algorithm over its seeds;
+- conditions (``CONDITIONS``): the C11 target with the wall, randomized targets, and the C11
+  target under four parameter shifts.
+
+Learned algorithms are aggregated with rliable over their training seeds: the interquartile
+mean (IQM) of the time to target and its 95 % stratified-bootstrap confidence interval
+(the evaluation episodes are rliable's tasks, the seeds its runs; an episode that does not
+reach the target counts with the 3 s time limit), and the probability that the algorithm
+is faster than the heuristic. Every seed's own figures are in ``per_seed``. Writes
+``comparison.json`` (``{"policies": [...]}``, one entry per policy and condition),
+``comparison.md`` and the figures under ``--out``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import time
+import warnings
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from agents.policies import DecHeuristic, PDPolicy, run_episode
+from scara_gym import DEFAULT_PARAMS, LATEST_ENV_ID
+
+TIME_LIMIT = 3.0  # s, the registered episode limit: the time of an episode that never arrives
+_axes = DEFAULT_PARAMS.axes
+
+
+@dataclass(frozen=True)
+class Condition:
+    """One evaluation condition: environment arguments and parameter overrides."""
+
+    name: str
+    description: str
+    randomize_target: bool = False
+    params: dict = field(default_factory=dict)
+
+
+CONDITIONS = {c.name: c for c in (
+    Condition("c11", "the C11 target (2, 2, 0.3) with the wall"),
+    Condition("random-targets", "targets drawn per episode beyond the wall", randomize_target=True),
+    Condition("load-x2", "load mass x2 (m3L 0.5 -> 1.0 kg)", params={"arm.load_mass": 2 * DEFAULT_PARAMS.arm.load_mass}),
+    Condition("wall-closer", "wall 2 cm closer to the arm's start (x_obs 0.35 -> 0.37 m)",
+              params={"obstacle.x_position": DEFAULT_PARAMS.obstacle.x_position + 0.02}),
+    Condition("current-limits-15", "current limits -15 %",
+              params={f"axes.{i}.current_limit": 0.85 * a.current_limit for i, a in enumerate(_axes)}),
+    Condition("resistance+20", "motor resistances +20 %",
+              params={f"axes.{i}.resistance": 1.2 * a.resistance for i, a in enumerate(_axes)}),
+)}
+
+
+def make_env(condition: Condition, control_mode: str, env_id: str = LATEST_ENV_ID):
+    import gymnasium as gym
+
+    import scara_gym  # noqa: F401
+
+    return gym.make(env_id, control_mode=control_mode, randomize_target=condition.randomize_target,
+                    params=DEFAULT_PARAMS.replace(condition.params))
+
+
+def smallest_safe_distance(env, variant: str, low: float = 0.0, high: float = 0.4, tolerance: float = 5e-4) -> float:
+    """Bisected smallest trigger distance of the heuristic that clears the wall in episode 0."""
+    def safe(distance):
+        result = run_episode(env, DecHeuristic(env, variant, critical_distance=distance), seed=1000)
+        return result["success"] and result["collisions"] == 0
+
+    if not safe(high):
+        return float("nan")
+    while high - low > tolerance:
+        middle = 0.5 * (low + high)
+        low, high = (low, middle) if safe(middle) else (middle, high)
+    return high
+
+
+def episodes_of(env, policy, episodes: int, seed: int) -> dict:
+    """Per-episode arrays of one policy (and the first episode's trace)."""
+    results = [run_episode(env, policy, seed=seed + i, record=i == 0) for i in range(episodes)]
+    reach = np.array([r["reach_time"] if r["success"] else np.nan for r in results])
+    return {"success": np.array([r["success"] for r in results]),
+            "collisions": np.array([r["collisions"] > 0 for r in results]),
+            "reach_time": reach, "energy": np.array([r["energy"] for r in results]),
+            "trace": results[0]["trace"]}
+
+
+def time_scores(runs: list[dict]) -> np.ndarray:
+    """(runs, episodes) times to target, the time limit where not reached (lower is better)."""
+    return np.array([np.where(np.isnan(r["reach_time"]), TIME_LIMIT, r["reach_time"]) for r in runs])
+
+
+def _interval_estimates(scores: dict, function, reps: int, seed: int):
+    """rliable's point estimates and 95 % stratified-bootstrap intervals."""
+    from rliable import library as rly
+
+    with warnings.catch_warnings():  # rliable passes arch a RandomState, which arch deprecates
+        warnings.simplefilter("ignore", FutureWarning)
+        return rly.get_interval_estimates(scores, function, reps=reps, random_state=np.random.RandomState(seed))
+
+
+def _save(fig, path: Path, written: list[Path]) -> None:
+    import matplotlib.pyplot as plt
+
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    written.append(path)
+
+
+def iqm_with_ci(scores: np.ndarray, reps: int = 2000, seed: int = 0) -> tuple[float, list[float]]:
+    """rliable's IQM over runs x tasks and its 95 % stratified-bootstrap interval."""
+    from rliable import metrics
+
+    point, interval = _interval_estimates({"x": scores}, lambda s: np.array([metrics.aggregate_iqm(s)]), reps, seed)
+    return float(point["x"][0]), [float(interval["x"][0, 0]), float(interval["x"][1, 0])]
+
+
+def probability_faster(learned: np.ndarray, reference: np.ndarray, reps: int = 2000,
+                       seed: int = 0) -> tuple[float, list[float]]:
+    """rliable's probability of improvement P(learned faster than reference), with its 95 % CI."""
+    from rliable import metrics
+
+    point, interval = _interval_estimates(
+        {"x": [-learned, -reference]}, lambda x, y: np.array([metrics.probability_of_improvement(x, y)]), reps, seed)
+    return float(point["x"][0]), [float(interval["x"][0, 0]), float(interval["x"][1, 0])]
+
+
+def entry(name: str, kind: str, algorithm: str | None, mode: str, condition: str, runs: list[dict],
+          seeds: list[int] | None, note: str = "") -> dict:
+    success = np.concatenate([r["success"] for r in runs])
+    time_iqm, time_ci = iqm_with_ci(time_scores(runs))
+    row = {"name": name, "kind": kind, "algorithm": algorithm, "control_mode": mode, "condition": condition,
+           "seeds": seeds, "episodes": int(len(runs[0]["success"])),
+           "success_rate": float(success.mean()),
+           "collision_rate": float(np.concatenate([r["collisions"] for r in runs]).mean()),
+           "time_iqm": time_iqm, "time_ci": time_ci,
+           "energy_mean": float(np.mean([r["energy"].mean() for r in runs])), "note": note}
+    if seeds is not None:
+        row["per_seed"] = [{"seed": s, "success_rate": float(r["success"].mean()),
+                            "collision_rate": float(r["collisions"].mean()),
+                            "time_mean": float(np.nanmean(r["reach_time"])) if r["success"].any() else None,
+                            "energy_mean": float(r["energy"].mean())} for s, r in zip(seeds, runs)]
+    return row
+
+
+def learned_runs(runs_root: Path, env_id: str = LATEST_ENV_ID) -> dict[tuple[str, str], list[Path]]:
+    """(algorithm, control mode) -> finished run folders, seed order."""
+    groups: dict[tuple[str, str], list[Path]] = {}
+    for config in sorted(Path(runs_root).glob(f"{env_id}/*/*/seed*/config.json")):
+        run = config.parent
+        if (run / "model.zip").exists():
+            groups.setdefault((run.parent.name, run.parent.parent.name), []).append(run)
+    for key in groups:
+        groups[key].sort(key=lambda p: int(p.name.removeprefix("seed")))
+    return groups
+
+
+def compare(runs_root: Path | None = Path("runs/baselines"), conditions: list[str] = ("c11",),
+            episodes: int = 100, seed: int = 1000, include_optimal: bool = True, verbose: bool = True,
+            bisection_tolerance: float = 5e-4):
+    """Every policy in every condition: (entries, traces per condition)."""
+    from agents.optimal import OptimalPolicy
+    from agents.training import SB3Policy
+
+    entries, traces = [], {}
+    groups = learned_runs(runs_root) if runs_root is not None else {}
+    for name in conditions:
+        condition = CONDITIONS[name]
+        traces[name] = {}
+        started = time.perf_counter()
+
+        def add(label, kind, algorithm, mode, runs, seeds, note=""):
+            entries.append(entry(label, kind, algorithm, mode, name, runs, seeds, note))
+            traces[name][label] = runs[0]["trace"]
+            if verbose:
+                e = entries[-1]
+                print(f"[{name}] {label}: success {e['success_rate']:.2f}, collisions {e['collision_rate']:.2f}, "
+                      f"time IQM {e['time_iqm']:.4f} s {e['time_ci']}, energy {e['energy_mean']:.1f} J", flush=True)
+
+        reference = None  # the heuristic learned agents are compared with: dec-continue, smallest safe distance
+        env = make_env(condition, "pd")
+        add("pd", "pd", None, "pd", [episodes_of(env, PDPolicy(env), episodes, seed)], None)
+        for variant in ("continue", "restart"):
+            smallest = smallest_safe_distance(env, variant, tolerance=bisection_tolerance)
+            if np.isnan(smallest):
+                continue
+            for label, distance in (("smallest safe", smallest), ("+20 %", 1.2 * smallest)):
+                policy = DecHeuristic(env, variant, critical_distance=distance)
+                runs = [episodes_of(env, policy, episodes, seed)]
+                reference = reference or runs
+                add(f"dec-{variant}, {label} (d={distance:.4f} m)", "heuristic", None, "pd", runs, None,
+                    note=f"trigger distance {distance:.4f} m (smallest safe in this condition: {smallest:.4f} m)")
+        if include_optimal and not condition.randomize_target:
+            env = make_env(condition, "voltage")
+            add("optimal", "optimal", None, "voltage", [episodes_of(env, OptimalPolicy(env), episodes, seed)], None,
+                note="minimum-time voltages held over the control steps (agents.optimal)")
+        for (algorithm, mode), run_dirs in sorted(groups.items()):
+            env = make_env(condition, mode)
+            runs = [episodes_of(env, SB3Policy(env, d), episodes, seed) for d in run_dirs]
+            seeds = [json.loads((d / "config.json").read_text())["seed"] for d in run_dirs]
+            add(algorithm, "learned", algorithm, mode, runs, seeds)
+            if reference is not None:
+                p, ci = probability_faster(time_scores(runs), time_scores(reference))
+                entries[-1]["probability_faster_than_heuristic"] = p
+                entries[-1]["probability_faster_ci"] = ci
+        if verbose:
+            print(f"[{name}] {time.perf_counter() - started:.0f} s", flush=True)
+    return entries, traces
+
+
+def markdown(entries: list[dict]) -> str:
+    lines = []
+    for name in dict.fromkeys(e["condition"] for e in entries):
+        lines += [f"#### {name}: {CONDITIONS[name].description}", "",
+                  "| policy | kind | mode | seeds | episodes | success | collisions | time to target, IQM [95 % CI] (s) "
+                  "| energy (J) | P(faster than heuristic) |", "|---|---|---|---|---|---|---|---|---|---|"]
+        for e in (e for e in entries if e["condition"] == name):
+            seeds = "-" if e["seeds"] is None else ",".join(map(str, e["seeds"]))
+            p = e.get("probability_faster_than_heuristic")
+            p_text = "-" if p is None else f"{p:.2f} [{e['probability_faster_ci'][0]:.2f}, {e['probability_faster_ci'][1]:.2f}]"
+            lines.append(f"| {e['name']} | {e['kind']} | {e['control_mode']} | {seeds} | {e['episodes']} | "
+                         f"{e['success_rate']:.2f} | {e['collision_rate']:.2f} | {e['time_iqm']:.4f} "
+                         f"[{e['time_ci'][0]:.4f}, {e['time_ci'][1]:.4f}] | {e['energy_mean']:.1f} | {p_text} |")
+        per_seed = [e for e in entries if e["condition"] == name and e.get("per_seed")]
+        if per_seed:
+            lines += ["", "Every seed (success, collisions, mean time of the successful episodes, energy):", ""]
+            for e in per_seed:
+                cells = [f"seed {s['seed']}: {s['success_rate']:.2f} / {s['collision_rate']:.2f} / "
+                         + ("-" if s["time_mean"] is None else f"{s['time_mean']:.4f} s") + f" / {s['energy_mean']:.0f} J"
+                         for s in e["per_seed"]]
+                lines.append(f"- {e['name']}: " + "; ".join(cells))
+        lines.append("")
+    return "\n".join(lines)
+
+
+def figures(entries: list[dict], traces: dict, groups: dict, out: Path) -> list[Path]:
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    written = []
+    obstacle = DEFAULT_PARAMS.obstacle
+    if "c11" in traces:
+        fig, ax = plt.subplots(figsize=(6.5, 6))
+        ax.axvspan(obstacle.x_position - obstacle.critical_distance, obstacle.x_position + obstacle.critical_distance,
+                   color="0.88")
+        ax.axvline(obstacle.x_position, color="k", lw=2, label="wall (x_obs)")
+        for (label, trace), color in zip(traces["c11"].items(), plt.cm.tab10.colors):
+            ax.plot(trace[:, 1], trace[:, 2], color="k" if label == "optimal" else color,
+                    lw=2.5 if label == "optimal" else 1.1, label=label)
+        ax.set(xlabel="x [m]", ylabel="y [m]", title="Tip paths on the C11 target (learned: first seed)", aspect="equal")
+        ax.legend(fontsize=7)
+        _save(fig, out / "comparison_tip_paths.png", written)
+
+        fig, ax = plt.subplots(figsize=(7, 4.5))
+        for e, color in zip([e for e in entries if e["condition"] == "c11"], plt.cm.tab10.colors):
+            ax.errorbar(e["time_iqm"], e["energy_mean"], xerr=[[e["time_iqm"] - e["time_ci"][0]],
+                                                              [e["time_ci"][1] - e["time_iqm"]]],
+                        fmt="o", color=color, label=e["name"])
+            for s in e.get("per_seed", []):
+                if s["time_mean"] is not None:
+                    ax.plot(s["time_mean"], s["energy_mean"], ".", color=color, alpha=0.6)
+        ax.set(xlabel="time to target [s] (IQM, 95 % CI; dots: seeds)", ylabel="electrical energy [J]",
+               title="Time against energy, C11 target", yscale="log")
+        ax.legend(fontsize=7)
+        _save(fig, out / "comparison_time_energy.png", written)
+
+    curves = {}
+    for (algorithm, mode), run_dirs in sorted(groups.items()):
+        data = [np.load(d / "eval" / "evaluations.npz") for d in run_dirs if (d / "eval" / "evaluations.npz").exists()]
+        data = [d for d in data if len(d["timesteps"])]
+        if data:
+            n = min(len(d["timesteps"]) for d in data)
+            curves[f"{algorithm} ({mode})"] = (data[0]["timesteps"][:n], np.array([d["results"][:n].mean(axis=1) for d in data]))
+    if curves:
+        from rliable import metrics
+
+        fig, ax = plt.subplots(figsize=(7, 4))
+        for (label, (steps, returns)), color in zip(curves.items(), plt.cm.tab10.colors):
+            point, interval = _interval_estimates(
+                {label: returns[:, None, :]},
+                lambda s: np.array([metrics.aggregate_iqm(s[:, :, t]) for t in range(s.shape[-1])]), 500, 0)
+            ax.plot(steps, point[label], color=color, label=f"{label}, {returns.shape[0]} seeds")
+            ax.fill_between(steps, interval[label][0], interval[label][1], color=color, alpha=0.2)
+        ax.set(xlabel="environment steps", ylabel="evaluation return (IQM over seeds, 95 % CI)",
+               title="Learning curves", xscale="log")
+        ax.legend(fontsize=8)
+        _save(fig, out / "comparison_learning_curves.png", written)
+    return written
+
+
+def main(argv: list[str] | None = None) -> list[dict]:
+    parser = argparse.ArgumentParser(prog="python -m agents.compare", description=__doc__.split("\n\n")[0])
+    parser.add_argument("--runs", type=Path, default=Path("runs/baselines"),
+                        help="agents.baselines' folder of learned runs (ENV_ID/MODE/ALGO/seedN)")
+    parser.add_argument("--conditions", nargs="+", choices=list(CONDITIONS), default=list(CONDITIONS))
+    parser.add_argument("--episodes", type=int, default=100)
+    parser.add_argument("--seed", type=int, default=1000, help="episode i uses seed + i")
+    parser.add_argument("--no-optimal", action="store_true", help="leave out the optimal reference")
+    parser.add_argument("--out", type=Path, default=Path("docs/results"))
+    args = parser.parse_args(argv)
+    if args.episodes < 1:
+        parser.error(f"--episodes must be >= 1, got {args.episodes}")
+    entries, traces = compare(args.runs, args.conditions, args.episodes, args.seed, not args.no_optimal)
+    args.out.mkdir(parents=True, exist_ok=True)
+    command = "python -m agents.compare " + " ".join(argv if argv is not None else __import__("sys").argv[1:])
+    (args.out / "comparison.json").write_text(json.dumps({"env_id": LATEST_ENV_ID, "command": command,
+                                                           "policies": entries}, indent=1))
+    (args.out / "comparison.md").write_text(markdown(entries))
+    figures(entries, traces, learned_runs(args.runs), args.out)
+    print(markdown(entries))
+    return entries
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,290 @@
+"""Resumable stable-baselines3 training (PPO, SAC, TD3) on the native vector environment.
+
+One function, :func:`train`, trains any of the three algorithms from a hyperparameter entry
+(RL-Zoo style YAML, ``agents/hyperparams/ALGO.yml``, keyed by env id then control mode):
+
+1. the training env: the registered id's integration arguments (``ENV_VERSIONS``) on the
+   native vector env through ``SB3VecEnv``, optionally a residual set-point wrapper (the
+   engineered agent of agents/ppo.py only) and ``VecNormalize``;
+2. the evaluation env: ``gym.make(env_id)`` in a ``Monitor``, seeded ``10_000 + seed``
+   (disjoint from the evaluation seeds 1000-1099 of agents.evaluate), driven by
+   ``EvalCallback`` every ``eval_freq`` steps: the learning curve in ``eval/evaluations.npz``;
+3. a snapshot every ``snapshot_freq`` steps (``snapshot/``: model, replay buffer, normalization
+   statistics, evaluation history, steps and seconds so far), written to a scratch folder
+   and swapped in whole, so an interrupted run loses at most one snapshot interval:
+   calling :func:`train` again with the same ``out`` resumes from it;
+4. at the end: ``model.zip``, ``vecnormalize.pkl`` (if normalized) and ``config.json``.
+
+Checkpoint rule: none. The policy at the end of the budget is the one evaluated; the
+evaluation history is a learning curve, not a selector. A resumed run continues the same
+schedule but not the same random streams (SB3 does not save its generators), so it is a
+valid run of the recipe, not a bit-for-bit replay of an uninterrupted one.
+"""
+
+from __future__ import annotations
+
+import json
+import shutil
+import time
+from pathlib import Path
+
+import numpy as np
+import yaml
+
+from scara_gym import ENV_VERSIONS, LATEST_ENV_ID
+
+HYPERPARAMS = Path(__file__).with_name("hyperparams")
+SHIPPED_MODELS = Path(__file__).with_name("models")
+ALGORITHMS = ("ppo", "sac", "td3")
+# entries of a hyperparameter block that configure the run, not the SB3 algorithm
+RUN_KEYS = {"n_timesteps", "n_envs", "env_threads", "env_kwargs", "normalize", "residual_scale",
+            "residual_deadzone", "net_arch", "log_std_init", "noise_std", "snapshot_freq",
+            "eval_freq", "eval_episodes", "torch_threads", "checkpoint_freq"}
+
+
+def load_hyperparams(algo: str, env_id: str = LATEST_ENV_ID, control_mode: str = "pd",
+                     variant: str | None = None, path: Path | None = None) -> dict:
+    """The block env_id -> control_mode (or "MODE-VARIANT" when given) of ALGO.yml."""
+    if algo not in ALGORITHMS:
+        raise ValueError(f"algo must be one of {ALGORITHMS}, got {algo!r}")
+    path = Path(path) if path is not None else HYPERPARAMS / f"{algo}.yml"
+    table = yaml.safe_load(path.read_text())
+    key = control_mode if variant is None else f"{control_mode}-{variant}"
+    if env_id not in table or key not in table[env_id]:
+        known = {k: sorted(v) for k, v in table.items()}
+        raise KeyError(f"no {algo} hyperparameters for {env_id!r} / {key!r} in {path}; it has {known}")
+    return dict(table[env_id][key])
+
+
+def algorithm_class(algo: str):
+    from stable_baselines3 import PPO, SAC, TD3
+
+    return {"ppo": PPO, "sac": SAC, "td3": TD3}[algo]
+
+
+def _normalize_kwargs(hyper: dict) -> dict | None:
+    normalize = hyper.get("normalize", False)
+    if normalize is True:
+        return {"norm_obs": True, "norm_reward": True}
+    return dict(normalize) if normalize else None
+
+
+def _residual_mapping(task, hyper: dict):
+    if "residual_scale" not in hyper:
+        return None
+    from agents.ppo import ResidualSetpoint
+
+    return ResidualSetpoint(task, hyper["residual_scale"], hyper.get("residual_deadzone", 0.0))
+
+
+def make_envs(env_id: str, env_kwargs: dict, hyper: dict, seed: int, normalizer: Path | None = None):
+    """(training VecEnv, evaluation VecEnv), wrapped alike: residual set-points (if the block
+    has them), then VecNormalize (if it asks for it; loaded from `normalizer` on resume)."""
+    import gymnasium as gym
+    from stable_baselines3.common.monitor import Monitor
+    from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
+
+    from agents.ppo import ResidualVecEnv
+    from scara_gym.integrations.sb3 import SB3VecEnv
+
+    train_env = SB3VecEnv(num_envs=hyper["n_envs"], num_threads=hyper.get("env_threads", 1),
+                          **ENV_VERSIONS[env_id], **env_kwargs)
+    train_env.seed(seed)
+    eval_env = DummyVecEnv([lambda: Monitor(gym.make(env_id, **env_kwargs))])
+    eval_env.seed(10_000 + seed)
+    mapping = _residual_mapping(train_env.venv.task, hyper)
+    if mapping is not None:
+        train_env, eval_env = ResidualVecEnv(train_env, mapping), ResidualVecEnv(eval_env, mapping)
+    norm = _normalize_kwargs(hyper)
+    if norm is not None:
+        gamma = hyper.get("gamma", 0.99)
+        if normalizer is not None:
+            train_env = VecNormalize.load(str(normalizer), train_env)
+        else:
+            train_env = VecNormalize(train_env, gamma=gamma, **norm)
+        eval_env = VecNormalize(eval_env, norm_obs=norm.get("norm_obs", True), norm_reward=False,
+                                training=False, gamma=gamma)
+    return train_env, eval_env
+
+
+def algorithm_kwargs(algo: str, hyper: dict, n_actions: int) -> dict:
+    """SB3 constructor arguments from a hyperparameter block."""
+    kwargs = {k: v for k, v in hyper.items() if k not in RUN_KEYS}
+    policy_kwargs = {"net_arch": list(hyper.get("net_arch", [64, 64]))}
+    if algo == "ppo" and "log_std_init" in hyper:
+        policy_kwargs["log_std_init"] = hyper["log_std_init"]
+    if algo == "td3" and hyper.get("noise_std"):
+        from stable_baselines3.common.noise import NormalActionNoise
+
+        kwargs["action_noise"] = NormalActionNoise(np.zeros(n_actions), hyper["noise_std"] * np.ones(n_actions))
+    return {"policy_kwargs": policy_kwargs, **kwargs}
+
+
+def _snapshot_callback(out: Path, every: int, eval_callback, clock: dict):
+    from stable_baselines3.common.callbacks import BaseCallback
+
+    class Snapshot(BaseCallback):
+        """Every `every` steps: model, replay buffer, normalizer and history, swapped in whole."""
+
+        def __init__(self) -> None:
+            super().__init__()
+            self.last = 0
+
+        def _on_training_start(self) -> None:
+            self.last = self.num_timesteps
+
+        def _on_step(self) -> bool:
+            if self.num_timesteps - self.last >= every:
+                self.save()
+            return True
+
+        def save(self) -> None:
+            self.last = self.num_timesteps
+            scratch, final, old = out / "snapshot.partial", out / "snapshot", out / "snapshot.old"
+            shutil.rmtree(scratch, ignore_errors=True)
+            scratch.mkdir(parents=True)
+            self.model.save(scratch / "model.zip")
+            if hasattr(self.model, "replay_buffer") and self.model.replay_buffer is not None:
+                self.model.save_replay_buffer(scratch / "replay_buffer.pkl")
+            if self.model.get_vec_normalize_env() is not None:
+                self.model.get_vec_normalize_env().save(str(scratch / "vecnormalize.pkl"))
+            _save_history(scratch / "evaluations.npz", eval_callback)
+            progress = {"num_timesteps": int(self.num_timesteps), "best_mean_reward": float(eval_callback.best_mean_reward),
+                        "train_seconds": clock["before"] + time.perf_counter() - clock["started"]}
+            (scratch / "progress.json").write_text(json.dumps(progress))
+            if final.exists():
+                final.rename(old)
+            scratch.rename(final)
+            shutil.rmtree(old, ignore_errors=True)
+
+    return Snapshot()
+
+
+def _save_history(path: Path, eval_callback) -> None:
+    shape = (len(eval_callback.evaluations_timesteps), eval_callback.n_eval_episodes)
+    np.savez(path, timesteps=np.array(eval_callback.evaluations_timesteps, dtype=np.int64),
+             results=np.array(eval_callback.evaluations_results, dtype=float).reshape(shape),
+             ep_lengths=np.array(eval_callback.evaluations_length, dtype=np.int64).reshape(shape),
+             successes=np.array(eval_callback.evaluations_successes, dtype=float).reshape(shape))
+
+
+def _restore_history(path: Path, eval_callback, best_mean_reward: float) -> None:
+    with np.load(path) as data:
+        eval_callback.evaluations_timesteps = [int(t) for t in data["timesteps"]]
+        eval_callback.evaluations_results = [list(r) for r in data["results"]]
+        eval_callback.evaluations_length = [list(r) for r in data["ep_lengths"]]
+        eval_callback.evaluations_successes = [list(r) for r in data["successes"]]
+    eval_callback.best_mean_reward = best_mean_reward
+
+
+def train(algo: str, out: str | Path, env_id: str = LATEST_ENV_ID, control_mode: str = "pd", seed: int = 0,
+          hyperparams: dict | None = None, total_timesteps: int | None = None, progress_bar: bool = False,
+          command: str | None = None) -> Path:
+    """Train (or resume) one run into `out`; returns `out`. See the module docstring."""
+    import torch
+    from stable_baselines3.common.callbacks import CheckpointCallback, EvalCallback
+
+    if env_id not in ENV_VERSIONS:
+        raise ValueError(f"env_id must be one of {sorted(ENV_VERSIONS)}, got {env_id!r}")
+    hyper = dict(hyperparams) if hyperparams is not None else load_hyperparams(algo, env_id, control_mode)
+    total_timesteps = int(total_timesteps or hyper["n_timesteps"])
+    out = Path(out).resolve()
+    if SHIPPED_MODELS.resolve() in (out, *out.parents):
+        raise ValueError(f"training writes under runs/ or --out, never into the shipped models ({out})")
+    if (out / "config.json").exists() and (out / "model.zip").exists():
+        return out  # finished before
+    out.mkdir(parents=True, exist_ok=True)
+    if hyper.get("torch_threads"):
+        torch.set_num_threads(int(hyper["torch_threads"]))
+    env_kwargs = {"control_mode": control_mode, **hyper.get("env_kwargs", {})}
+
+    snapshot = out / "snapshot"
+    if not (snapshot / "progress.json").exists() and (out / "snapshot.old" / "progress.json").exists():
+        snapshot = out / "snapshot.old"  # interrupted while swapping
+    resuming = (snapshot / "progress.json").exists()
+    progress = json.loads((snapshot / "progress.json").read_text()) if resuming else \
+        {"num_timesteps": 0, "best_mean_reward": -np.inf, "train_seconds": 0.0}
+    normalizer = snapshot / "vecnormalize.pkl" if resuming and (snapshot / "vecnormalize.pkl").exists() else None
+    train_env, eval_env = make_envs(env_id, env_kwargs, hyper, seed, normalizer)
+
+    Algorithm = algorithm_class(algo)
+    if resuming:
+        model = Algorithm.load(snapshot / "model.zip", env=train_env, device="cpu",
+                               tensorboard_log=str(out / "tb"))
+        if (snapshot / "replay_buffer.pkl").exists():
+            model.load_replay_buffer(snapshot / "replay_buffer.pkl")
+    else:
+        model = Algorithm("MlpPolicy", train_env, seed=seed, device="cpu", verbose=0, tensorboard_log=str(out / "tb"),
+                          **algorithm_kwargs(algo, hyper, train_env.action_space.shape[0]))
+
+    per_env = lambda steps: max(1, int(steps) // hyper["n_envs"])  # noqa: E731  callbacks count vector steps
+    eval_callback = EvalCallback(eval_env, n_eval_episodes=hyper.get("eval_episodes", 5),
+                                 eval_freq=per_env(hyper.get("eval_freq", 25_000)), log_path=str(out / "eval"),
+                                 best_model_save_path=None, deterministic=True, verbose=0)
+    if resuming:
+        _restore_history(snapshot / "evaluations.npz", eval_callback, progress["best_mean_reward"])
+    clock = {"before": progress["train_seconds"], "started": time.perf_counter()}
+    snapshots = _snapshot_callback(out, int(hyper.get("snapshot_freq", 50_000)), eval_callback, clock)
+
+    callbacks = [eval_callback, snapshots]
+    if hyper.get("checkpoint_freq"):  # kept models for agents.select_checkpoint, with their normalizers
+        callbacks.append(CheckpointCallback(per_env(hyper["checkpoint_freq"]), str(out / "checkpoints"),
+                                            name_prefix=algo, save_vecnormalize=True))
+
+    remaining = total_timesteps - progress["num_timesteps"]
+    if remaining > 0:
+        model.learn(total_timesteps=remaining, callback=callbacks, progress_bar=progress_bar,
+                    reset_num_timesteps=not resuming, tb_log_name=algo)
+    train_seconds = clock["before"] + time.perf_counter() - clock["started"]
+
+    model.save(out / "model.zip")
+    if model.get_vec_normalize_env() is not None:
+        model.get_vec_normalize_env().save(str(out / "vecnormalize.pkl"))
+    (out / "eval").mkdir(exist_ok=True)
+    _save_history(out / "eval" / "evaluations.npz", eval_callback)
+    config = {"algo": algo, "env_id": env_id, "env_kwargs": env_kwargs, "seed": seed,
+              "total_timesteps": total_timesteps, "hyperparams": hyper, "train_seconds": train_seconds,
+              "resumed": resuming, "torch_threads": torch.get_num_threads(),
+              "checkpoint_rule": "none: the policy at the end of the budget",
+              "command": command or f"agents.training.train({algo!r}, {str(out)!r}, {env_id!r}, {control_mode!r}, {seed})"}
+    (out / "config.json").write_text(json.dumps(config, indent=2))
+    shutil.rmtree(out / "snapshot", ignore_errors=True)
+    shutil.rmtree(out / "snapshot.old", ignore_errors=True)
+    return out
+
+
+class SB3Policy:
+    """A model saved by :func:`train` (or a shipped one) as an obs -> action policy for one env."""
+
+    def __init__(self, env, model_dir: str | Path) -> None:
+        import pickle
+
+        model_dir = Path(model_dir)
+        self.env = env.unwrapped if hasattr(env, "unwrapped") else env
+        config = json.loads((model_dir / "config.json").read_text())
+        trained_mode = config["env_kwargs"]["control_mode"]
+        if trained_mode != self.env.control_mode:
+            raise ValueError(f"{model_dir} was trained in {trained_mode!r} mode, "
+                             f"the environment is in {self.env.control_mode!r} mode")
+        algo = config.get("algo", "ppo")
+        self.model = algorithm_class(algo).load(model_dir / "model.zip", device="cpu")
+        self.normalizer = None
+        if (model_dir / "vecnormalize.pkl").exists():
+            with open(model_dir / "vecnormalize.pkl", "rb") as f:
+                normalizer = pickle.load(f)
+            if normalizer.norm_obs:
+                self.normalizer = normalizer
+        self.mapping = _residual_mapping(self.env.task, config["hyperparams"])
+        self.config = config
+        self.name = f"{algo} ({model_dir.name})"
+
+    def reset(self) -> None:
+        pass
+
+    def __call__(self, obs: np.ndarray) -> np.ndarray:
+        x = np.asarray(obs, dtype=np.float64)
+        if self.normalizer is not None:
+            n = self.normalizer
+            x = np.clip((x - n.obs_rms.mean) / np.sqrt(n.obs_rms.var + n.epsilon), -n.clip_obs, n.clip_obs)
+        action, _ = self.model.predict(x.astype(np.float32), deterministic=True)
+        return action if self.mapping is None else self.mapping(obs, action)[0]

@@ -1,0 +1,89 @@
+"""The minimum-time reference: its model, the shipped solution replayed in the env, the bound."""
+
+import json
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+import scara_gym  # noqa: F401
+from agents.optimal import SOLUTIONS, OptimalPolicy, cached_solution, replay
+from agents.policies import run_episode
+from scara_gym.model import records as R
+from scara_gym.model.dynamics import derivative
+from scara_gym.model.params import DEFAULT_PARAMS
+
+SPEC_BOUND = 1.2217  # s, the spec's minimum time under the environment's rules (continuous time)
+
+
+def test_casadi_model_equals_the_package_derivative():
+    pytest.importorskip("casadi")
+    from agents.optimal import casadi_model
+
+    f, tip_x = casadi_model(DEFAULT_PARAMS)
+    p = DEFAULT_PARAMS.to_record()
+    config = np.zeros(1, dtype=R.CONFIG)[0]
+    config["control"], config["form"] = R.CONTROL_VOLTAGE, R.FORM_EXPLICIT
+    rng = np.random.default_rng(3)
+    for _ in range(50):
+        x = np.concatenate([rng.uniform(-3, 3, 2), rng.uniform(0, 0.4, 1), rng.uniform(-8, 8, 2),
+                            rng.uniform(-0.5, 0.5, 1), rng.uniform(-1, 1, 3) * p["current_limit"], [0.0]])
+        fraction = rng.uniform(-1, 1, 3)
+        robot = np.zeros(1, dtype=R.ROBOT)[0]
+        robot["command"] = fraction
+        out, volts = np.zeros(R.N_STATE), np.zeros(3)
+        derivative(x, robot, p, config, out, volts)
+        expected = out[:9]
+        got = np.array(f(x[:9], fraction * p["voltage_limit"])).ravel()
+        assert np.allclose(got, expected, rtol=1e-12, atol=1e-9 * np.abs(expected).max())
+        tip = p["link1_length"] * np.cos(x[0]) + p["link2_length"] * np.cos(x[0] + x[1])
+        assert float(tip_x(x[:9])) == pytest.approx(tip, abs=1e-15)
+
+
+def test_shipped_solution_replays_in_the_environment():
+    """The C11 target: success, no collision, within 2 % of the spec's bound, above the
+    shipped free bound, which itself reproduces the spec's 1.2217 s to 1 ms."""
+    data = cached_solution()
+    assert data is not None, f"no shipped solution in {SOLUTIONS}"
+    assert data["free"]["status"] == data["held"]["status"] == "solved"
+    assert abs(data["free"]["time"] - SPEC_BOUND) < 1e-3
+    result = replay(np.array(data["held"]["actions"]))
+    assert result["success"] and result["collisions"] == 0
+    assert data["free"]["time"] <= result["reach_time"] <= 1.02 * SPEC_BOUND
+    assert result["reach_time"] == pytest.approx(data["replay"]["reach_time"], abs=1e-9)
+    # the replay ends inside the planned steps: the PD fallback is never used
+    assert result["steps"] <= len(data["held"]["actions"])
+
+
+def test_optimal_policy_in_the_environment_and_its_mode():
+    env = gym.make("Scara-C11-v1", control_mode="voltage")
+    policy = OptimalPolicy(env, solve_missing=False)
+    first = run_episode(env, policy, seed=0)
+    second = run_episode(env, policy, seed=1)
+    assert first["success"] and first["collisions"] == 0
+    assert first["reach_time"] == second["reach_time"]  # reset() restarts the plan
+    with pytest.raises(ValueError, match="control_mode='voltage'"):
+        OptimalPolicy(gym.make("Scara-C11-v1", control_mode="pd"))
+    with pytest.raises(LookupError, match="no shipped minimum-time solution"):
+        run_episode(env, policy, seed=0, options={"target": [1.5, 2.5, 0.25]})
+
+
+def test_shipped_solution_file_is_complete():
+    for path in SOLUTIONS.glob("*.json"):
+        data = json.loads(path.read_text())
+        assert {"start", "target", "params", "config", "free", "held", "replay", "command"} <= set(data)
+        actions = np.array(data["held"]["actions"])
+        assert actions.shape[1] == 3 and np.all(np.abs(actions) <= 1 + 1e-7)
+
+
+@pytest.mark.slow
+def test_free_problem_reproduces_the_spec_bound():
+    """The continuous-time problem solved from scratch (the heuristic's path as the guess)."""
+    pytest.importorskip("casadi")
+    from agents.optimal import CollocationConfig, minimum_time
+
+    solution = minimum_time("free", config=CollocationConfig(wall_margin=0.0, band_margin=0.0))
+    assert solution.status == "solved"
+    assert abs(solution.time - SPEC_BOUND) < 1e-3
+    critical_from, above = solution.phase_times
+    assert critical_from < above < solution.time  # the three phases in order

@@ -1,0 +1,74 @@
+"""Resumable SB3 training (agents.training) and the hyperparameter files of the baselines."""
+
+import json
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+import scara_gym  # noqa: F401
+
+pytest.importorskip("stable_baselines3")
+from agents import training  # noqa: E402
+from agents.policies import run_episode  # noqa: E402
+
+
+@pytest.mark.parametrize("algo", training.ALGORITHMS)
+@pytest.mark.parametrize("control_mode", ["pd", "voltage"])
+def test_every_hyperparameter_block_builds_its_algorithm(algo, control_mode):
+    hyper = training.load_hyperparams(algo, "Scara-C11-v1", control_mode)
+    assert hyper.get("env_kwargs", {}) == {}  # the standard baselines: the env as users get it
+    train_env, eval_env = training.make_envs("Scara-C11-v1", {"control_mode": control_mode},
+                                             {**hyper, "n_envs": 4}, seed=0)
+    model = training.algorithm_class(algo)("MlpPolicy", train_env, device="cpu",
+                                           **training.algorithm_kwargs(algo, hyper, 3))
+    assert model.gamma == hyper["gamma"]
+    with pytest.raises(KeyError, match="no sac hyperparameters"):
+        training.load_hyperparams("sac", "Scara-C11-v0", control_mode)
+
+
+def _tiny(algo):
+    hyper = training.load_hyperparams(algo)
+    hyper.update(n_envs=2, eval_freq=100, eval_episodes=1, snapshot_freq=100)
+    if algo == "ppo":
+        hyper.update(n_steps=50, batch_size=50, n_epochs=1)
+    else:
+        hyper.update(learning_starts=50, buffer_size=1000)
+    return hyper
+
+
+@pytest.mark.parametrize("algo", ["ppo", "td3"])
+def test_an_interrupted_run_resumes_from_its_snapshot(algo, tmp_path, monkeypatch):
+    out = tmp_path / algo
+    make_snapshot = training._snapshot_callback
+
+    def interrupting(*args):
+        callback = make_snapshot(*args)
+        save = callback.save
+
+        def save_then_stop():
+            save()
+            if callback.num_timesteps >= 200:
+                raise KeyboardInterrupt  # the session ends right after a snapshot
+        callback.save = save_then_stop
+        return callback
+
+    monkeypatch.setattr(training, "_snapshot_callback", interrupting)
+    with pytest.raises(KeyboardInterrupt):
+        training.train(algo, out, hyperparams=_tiny(algo), total_timesteps=400)
+    assert (out / "snapshot" / "progress.json").exists() and not (out / "config.json").exists()
+    stopped_at = json.loads((out / "snapshot" / "progress.json").read_text())["num_timesteps"]
+    monkeypatch.setattr(training, "_snapshot_callback", make_snapshot)
+
+    training.train(algo, out, hyperparams=_tiny(algo), total_timesteps=400)
+    config = json.loads((out / "config.json").read_text())
+    assert config["resumed"] and config["total_timesteps"] == 400
+    assert not (out / "snapshot").exists()
+    history = np.load(out / "eval" / "evaluations.npz")
+    steps = history["timesteps"]
+    assert np.all(np.diff(steps) > 0) and steps[0] <= stopped_at < steps[-1]  # one curve across the break
+    assert history["results"].shape == (len(steps), 1)
+    env = gym.make("Scara-C11-v1")
+    policy = training.SB3Policy(env, out)
+    assert run_episode(env, policy, seed=0)["steps"] >= 1
+    assert training.train(algo, out) == out.resolve()  # finished: nothing more to do
