@@ -159,7 +159,6 @@ def write_outputs(rows, traces, out: Path, model_dirs: list[Path], params) -> li
 
 
 def main(argv: list[str] | None = None) -> list[dict]:
-    from agents.ppo import resolve_model
     from scara_gym import DEFAULT_PARAMS
 
     parser = argparse.ArgumentParser(prog="python -m agents.evaluate", description=__doc__.split("\n\n")[0])
@@ -176,7 +175,10 @@ def main(argv: list[str] | None = None) -> list[dict]:
         parser.error(f"--episodes must be >= 1, got {args.episodes}")
     rows, traces = evaluate(args.policies, args.control_mode, args.randomize_target, args.episodes, args.seed,
                             env_id=args.env_id)
-    model_dirs = [resolve_model(spec.split(":", 1)[1]) for spec in args.policies if spec.startswith("ppo:")]
+    ppo_specs = [spec for spec in args.policies if spec.startswith("ppo:")]
+    if ppo_specs:  # stable-baselines3 (the train extra) only where a PPO agent is evaluated
+        from agents.ppo import resolve_model
+    model_dirs = [resolve_model(spec.split(":", 1)[1]) for spec in ppo_specs]
     write_outputs(rows, traces, args.out, model_dirs, DEFAULT_PARAMS)
     for spec, row in zip(args.policies, rows):
         if spec.startswith("ppo:"):  # the figures a model is tested against once shipped (its results.json)
