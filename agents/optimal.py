@@ -303,36 +303,39 @@ def solve(problem: str = "held", start=(0.0, 0.0, 0.0), target=(2.0, 2.0, 0.3),
                     solver_seconds=seconds, status=status)
 
 
-def heuristic_guess(params: ScaraParams) -> dict:
+def heuristic_guess(params: ScaraParams, distances=(0.06, 0.08, 0.1, 0.15, 0.2, 0.3)) -> dict:
     """States, actions and phase instants of the dec heuristic (voltage mode) from the start
-    to the target: a collision-free path through the same three phases."""
+    to the target: a collision-free path through the same three phases (the first trigger
+    distance in `distances` that clears the wall)."""
     import gymnasium as gym
 
     from agents.policies import DecHeuristic
 
     env = gym.make("Scara-C11-v1", control_mode="voltage", params=params, start=params.task.start,
                    target=params.task.target).unwrapped
-    policy = DecHeuristic(env, "continue", critical_distance=0.06)
-    obs, _ = env.reset(seed=0)
-    ts, xs, acts = [0.0], [np.concatenate([obs[Q], obs[RATES], obs[CURRENTS]])], []
-    t_critical = t_above = None
-    while True:
-        action = policy(obs)
-        obs, _, terminated, truncated, info = env.step(action)
-        acts.append(action)
-        ts.append(info["time"])
-        xs.append(np.concatenate([obs[Q], obs[RATES], obs[CURRENTS]]))
-        tip_x = obs[OBSERVATION_LAYOUT["tip_x"]]
-        if t_critical is None and tip_x < params.obstacle.x_position + params.obstacle.critical_distance:
-            t_critical = info["time"] - 0.5 * env.control_dt
-        if t_above is None and obs[Q][2] >= params.obstacle.height:
-            t_above = info["time"] - 0.5 * env.control_dt
-        if terminated or truncated:
-            break
-    if not info["is_success"] or t_critical is None or t_above is None:
-        raise RuntimeError("the heuristic guess does not pass the wall to the target from this start")
-    return {"times": (t_critical, t_above, info["reach_time"]), "t": np.array(ts), "x": np.array(xs),
-            "a": np.array(acts)}
+    for distance in distances:
+        policy = DecHeuristic(env, "continue", critical_distance=distance)
+        obs, _ = env.reset(seed=0)
+        ts, xs, acts = [0.0], [np.concatenate([obs[Q], obs[RATES], obs[CURRENTS]])], []
+        t_critical = t_above = None
+        while True:
+            action = policy(obs)
+            obs, _, terminated, truncated, info = env.step(action)
+            acts.append(action)
+            ts.append(info["time"])
+            xs.append(np.concatenate([obs[Q], obs[RATES], obs[CURRENTS]]))
+            tip_x = obs[OBSERVATION_LAYOUT["tip_x"]]
+            if t_critical is None and tip_x < params.obstacle.x_position + params.obstacle.critical_distance:
+                t_critical = info["time"] - 0.5 * env.control_dt
+            if t_above is None and obs[Q][2] >= params.obstacle.height:
+                t_above = info["time"] - 0.5 * env.control_dt
+            if terminated or truncated:
+                break
+        if info["is_success"] and info["collisions"] == 0 and t_critical is not None and t_above is not None:
+            return {"times": (t_critical, t_above, info["reach_time"]), "t": np.array(ts), "x": np.array(xs),
+                    "a": np.array(acts)}
+    raise RuntimeError(f"the dec heuristic does not pass the wall to the target from this start with any "
+                       f"trigger distance in {distances} m, so there is no guess for the collocation")
 
 
 def solution_guess(solution: Solution) -> dict:
