@@ -32,7 +32,7 @@ from pathlib import Path
 
 import numpy as np
 
-from agents.policies import DecHeuristic, PDPolicy, run_episode
+from agents.policies import DecHeuristic, PDPolicy, run_episode, smallest_safe_distance
 from scara_gym import DEFAULT_PARAMS, LATEST_ENV_ID
 
 TIME_LIMIT = 3.0  # s, the registered episode limit: the time of an episode that never arrives
@@ -69,20 +69,6 @@ def make_env(condition: Condition, control_mode: str, env_id: str = LATEST_ENV_I
 
     return gym.make(env_id, control_mode=control_mode, randomize_target=condition.randomize_target,
                     params=DEFAULT_PARAMS.replace(condition.params))
-
-
-def smallest_safe_distance(env, variant: str, low: float = 0.0, high: float = 0.4, tolerance: float = 5e-4) -> float:
-    """Bisected smallest trigger distance of the heuristic that clears the wall in episode 0."""
-    def safe(distance):
-        result = run_episode(env, DecHeuristic(env, variant, critical_distance=distance), seed=1000)
-        return result["success"] and result["collisions"] == 0
-
-    if not safe(high):
-        return float("nan")
-    while high - low > tolerance:
-        middle = 0.5 * (low + high)
-        low, high = (low, middle) if safe(middle) else (middle, high)
-    return high
 
 
 def episodes_of(env, policy, episodes: int, seed: int) -> dict:
@@ -192,8 +178,9 @@ def compare(runs_root: Path | None = Path("runs/baselines"), conditions: list[st
         env = make_env(condition, "pd")
         add("pd", "pd", None, "pd", [episodes_of(env, PDPolicy(env), episodes, seed)], None)
         for variant in ("continue", "restart"):
-            smallest = smallest_safe_distance(env, variant, tolerance=bisection_tolerance)
-            if np.isnan(smallest):
+            try:  # the bisection runs episode 0 of the evaluation seeds
+                smallest, _ = smallest_safe_distance(variant, tolerance=bisection_tolerance, env=env, seed=seed)
+            except RuntimeError:  # no trigger distance clears the wall in this condition
                 continue
             for label, distance in (("smallest safe", smallest), ("+20 %", 1.2 * smallest)):
                 policy = DecHeuristic(env, variant, critical_distance=distance)

@@ -270,8 +270,8 @@ def solve(problem: str = "held", start=(0.0, 0.0, 0.0), target=(2.0, 2.0, 0.3),
     else:
         s0 = [t_c / dt - k_critical, t_h / dt - k_above, t_f / dt - k_end]
         opti.set_initial(sigma, np.clip(s0, 0.05, 0.95))
-        el_t = np.concatenate([[0.0], np.cumsum([float(ca.evalf(ca.substitute(d, sigma, ca.DM(np.clip(s0, 0.05, 0.95)))))
-                                                for d in durations])])[:-1]
+        guess_durations = np.array(ca.Function("durations", [sigma], [h])(np.clip(s0, 0.05, 0.95))).ravel()
+        el_t = np.concatenate([[0.0], np.cumsum(guess_durations)])[:-1]
     el_end = np.append(el_t, t_f)
     X_guess = np.array([np.interp(el_end, t_guess, x_guess[:, i]) for i in range(9)])
     opti.set_initial(X, X_guess)
@@ -338,12 +338,12 @@ def heuristic_guess(params: ScaraParams, distances=(0.06, 0.08, 0.1, 0.15, 0.2, 
                        f"trigger distance in {distances} m, so there is no guess for the collocation")
 
 
-def solution_guess(solution: Solution) -> dict:
+def solution_guess(solution: Solution, control_dt: float) -> dict:
     """A solution as the guess of another solve (its path, actions and phase instants)."""
     return {"times": (*solution.phase_times, solution.time), "t": np.append(solution.element_times, solution.time),
             "x": solution.states, "a": solution.actions,
             "t_a": (solution.element_times if solution.problem == "free"
-                    else np.arange(len(solution.actions)) * CollocationConfig().control_dt)}
+                    else np.arange(len(solution.actions)) * control_dt)}
 
 
 def minimum_time(problem: str = "held", start=(0.0, 0.0, 0.0), target=(2.0, 2.0, 0.3),
@@ -355,14 +355,16 @@ def minimum_time(problem: str = "held", start=(0.0, 0.0, 0.0), target=(2.0, 2.0,
     free = solve("free", start, target, params, config, verbose=verbose)
     if problem == "free":
         return free
-    solution = solve("held", start, target, params, config, guess=solution_guess(free), verbose=verbose)
+    solution = solve("held", start, target, params, config, guess=solution_guess(free, config.control_dt),
+                     verbose=verbose)
     def layout(solution):
         return [int(np.floor(t / config.control_dt)) for t in (*solution.phase_times, solution.time)]
 
     for _ in range(rounds):
         if verbose:
             print(f"held: {solution.time:.6f} s, phases {solution.phase_times}, steps {layout(solution)}")
-        again = solve("held", start, target, params, config, guess=solution_guess(solution), verbose=verbose)
+        again = solve("held", start, target, params, config, guess=solution_guess(solution, config.control_dt),
+                      verbose=verbose)
         if layout(again) == layout(solution) and abs(again.time - solution.time) < 1e-6:
             return again
         solution = again

@@ -143,15 +143,17 @@ def run_episode(env, policy, seed: int | None = None, options: dict | None = Non
 
 
 def smallest_safe_distance(variant: str = "continue", env_kwargs: dict | None = None,
-                           low: float = 0.0, high: float = 0.4, tolerance: float = 1e-3):
+                           low: float = 0.0, high: float = 0.4, tolerance: float = 1e-3, env=None, seed: int = 0):
     """Bisection for the smallest trigger distance at which the heuristic clears the wall
-    from the default start; returns (distance, episode summary there)."""
+    and reaches the target in the episode of `seed` (of `env`, by default Scara-C11-v0 with
+    `env_kwargs`); returns (distance, episode summary there)."""
     import gymnasium as gym
 
-    env = gym.make("Scara-C11-v0", **(env_kwargs or {}))
+    if env is None:
+        env = gym.make("Scara-C11-v0", **(env_kwargs or {}))
 
     def safe(distance: float):
-        result = run_episode(env, DecHeuristic(env, variant, critical_distance=distance), seed=0)
+        result = run_episode(env, DecHeuristic(env, variant, critical_distance=distance), seed=seed)
         return result["collisions"] == 0 and result["success"], result
 
     ok, result = safe(high)

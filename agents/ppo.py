@@ -25,13 +25,12 @@ import yaml
 
 from stable_baselines3.common.vec_env import VecEnvWrapper
 
-from agents.training import SB3Policy
+from agents.training import SHIPPED_MODELS, SB3Policy
 from agents.training import train as run_training
 from scara_gym import ENV_ID
 from scara_gym.envs import OBSERVATION_LAYOUT, ScaraTask
 
 HYPERPARAMS = Path(__file__).with_name("hyperparams") / "ppo_residual.yml"
-SHIPPED_MODELS = Path(__file__).with_name("models")
 Q, TARGET_ERROR = OBSERVATION_LAYOUT["q"], OBSERVATION_LAYOUT["target_error"]
 
 
@@ -116,7 +115,6 @@ def train(control_mode: str = "pd", randomize_target: bool = False, seed: int = 
     hyper.setdefault("eval_freq", eval_freq)
     hyper.setdefault("eval_episodes", eval_episodes)
     hyper.setdefault("checkpoint_freq", 100_000)
-    hyper.setdefault("normalize", {"norm_obs": hyper.pop("norm_obs", True), "norm_reward": hyper.pop("norm_reward", True)})
     hyper["env_kwargs"] = {"randomize_target": randomize_target, **hyper.get("env_kwargs", {})}
     total_timesteps = int(total_timesteps or hyper["n_timesteps"])
     command = (f"python -m agents.train --env-id {env_id} --control-mode {control_mode} --seed {seed} "
