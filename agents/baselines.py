@@ -8,7 +8,9 @@ finished run is skipped; an interrupted one resumes from its snapshot (agents.tr
 the campaign can be stopped and started again, across sessions. ``ppo``, ``sac`` and ``td3``
 are the standard algorithms on the environment as users get it (hyperparameters in
 ``agents/hyperparams/ALGO.yml``); ``ppo-residual`` is the engineered agent of agents/ppo.py
-(``ppo_residual.yml``). ``--shard K/N`` takes every N-th run starting at the K-th, so
+(``ppo_residual.yml``), ``ppo-residual-dr`` the same trained with physics and wall
+randomized per episode (its "pd-dr" block) and ``ppo-residual-frugal`` with an energy cost
+in the reward (its "pd-frugal" block). ``--shard K/N`` takes every N-th run starting at the K-th, so
 that N processes can share the list (one per core); without it, workers started side by
 side share it too: each run is locked (``RUN/.lock``) by the process training it, and a
 worker passes over runs that are finished or locked.
@@ -25,7 +27,7 @@ from pathlib import Path
 
 from scara_gym import LATEST_ENV_ID
 
-ALGOS = ("ppo", "sac", "td3", "ppo-residual")
+ALGOS = ("ppo", "sac", "td3", "ppo-residual", "ppo-residual-dr", "ppo-residual-frugal")
 
 
 def run_dir(runs: Path, env_id: str, control_mode: str, algo: str, seed: int) -> Path:
@@ -53,11 +55,12 @@ def train_one(algo: str, seed: int, runs: Path, env_id: str = LATEST_ENV_ID, con
     out = run_dir(runs, env_id, control_mode, algo, seed)
     command = (f"python -m agents.baselines --algos {algo} --seeds {seed} --env-id {env_id} "
                f"--control-mode {control_mode} --runs {runs}")
-    if algo == "ppo-residual":
+    if algo.startswith("ppo-residual"):
         from agents.ppo import train
 
+        variant = algo.removeprefix("ppo-residual").removeprefix("-") or None
         return train(control_mode, seed=seed, total_timesteps=total_timesteps, out=out, progress_bar=False,
-                     env_id=env_id)
+                     env_id=env_id, variant=variant)
     from agents.training import train
 
     return train(algo, out, env_id, control_mode, seed, total_timesteps=total_timesteps, command=command)

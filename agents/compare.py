@@ -123,7 +123,7 @@ def probability_faster(learned: np.ndarray, reference: np.ndarray, reps: int = 2
 
 
 def entry(name: str, kind: str, algorithm: str | None, mode: str, condition: str, runs: list[dict],
-          seeds: list[int] | None, note: str = "") -> dict:
+          seeds: list[int] | None, note: str = "", train_seconds: list[float] | None = None) -> dict:
     success = np.concatenate([r["success"] for r in runs])
     time_iqm, time_ci = iqm_with_ci(time_scores(runs))
     row = {"name": name, "kind": kind, "algorithm": algorithm, "control_mode": mode, "condition": condition,
@@ -137,6 +137,8 @@ def entry(name: str, kind: str, algorithm: str | None, mode: str, condition: str
                             "collision_rate": float(r["collisions"].mean()),
                             "time_mean": float(np.nanmean(r["reach_time"])) if r["success"].any() else None,
                             "energy_mean": float(r["energy"].mean())} for s, r in zip(seeds, runs)]
+        for item, seconds in zip(row["per_seed"], train_seconds or []):
+            item["train_seconds"] = seconds
     return row
 
 
@@ -166,8 +168,8 @@ def compare(runs_root: Path | None = Path("runs/baselines"), conditions: list[st
         traces[name] = {}
         started = time.perf_counter()
 
-        def add(label, kind, algorithm, mode, runs, seeds, note=""):
-            entries.append(entry(label, kind, algorithm, mode, name, runs, seeds, note))
+        def add(label, kind, algorithm, mode, runs, seeds, note="", train_seconds=None):
+            entries.append(entry(label, kind, algorithm, mode, name, runs, seeds, note, train_seconds))
             traces[name][label] = runs[0]["trace"]
             if verbose:
                 e = entries[-1]
@@ -195,8 +197,9 @@ def compare(runs_root: Path | None = Path("runs/baselines"), conditions: list[st
         for (algorithm, mode), run_dirs in sorted(groups.items()):
             env = make_env(condition, mode)
             runs = [episodes_of(env, SB3Policy(env, d), episodes, seed) for d in run_dirs]
-            seeds = [json.loads((d / "config.json").read_text())["seed"] for d in run_dirs]
-            add(algorithm, "learned", algorithm, mode, runs, seeds)
+            configs = [json.loads((d / "config.json").read_text()) for d in run_dirs]
+            add(algorithm, "learned", algorithm, mode, runs, [c["seed"] for c in configs],
+                train_seconds=[c.get("train_seconds") for c in configs])
             if reference is not None:
                 p, ci = probability_faster(time_scores(runs), time_scores(reference))
                 entries[-1]["probability_faster_than_heuristic"] = p
@@ -206,8 +209,103 @@ def compare(runs_root: Path | None = Path("runs/baselines"), conditions: list[st
     return entries, traces
 
 
+MINIMUM_TIME_BOUND = 1.2217  # [s] the spec's continuous-time bound on the C11 target
+SHIFTS = ("load-x2", "wall-closer", "current-limits-15", "resistance+20")
+ROBUST_ALGORITHM = "ppo-residual-dr"
+TRAINING_BUDGET = 1800.0  # [s] per training run on 2 CPU cores
+
+
+def _find(entries, condition, kind=None, algorithm=None):
+    return [e for e in entries if e["condition"] == condition and (kind is None or e["kind"] == kind)
+            and (algorithm is None or e["algorithm"] == algorithm)]
+
+
+def _clean_every_seed(e: dict, success: float = 1.0) -> bool:
+    return all(s["success_rate"] >= success and s["collision_rate"] == 0.0 for s in e.get("per_seed", []))
+
+
+def _best_learned(learned: list[dict], success: float) -> dict | None:
+    """The fastest algorithm (IQM) among those clean on every seed, else the fastest."""
+    if not learned:
+        return None
+    clean = [e for e in learned if _clean_every_seed(e, success)]
+    return min(clean or learned, key=lambda e: e["time_iqm"])
+
+
+def target_checks(entries: list[dict]) -> list[dict]:
+    """The issue's targets: {"target", "met" (True/False/None: not evaluated), "reached"}."""
+    checks = []
+
+    def check(target, met, reached):
+        checks.append({"target": target, "met": met, "reached": reached})
+
+    def summary(e):
+        return (f"{e['name']}: success {e['success_rate']:.2f}, collisions {e['collision_rate']:.2f}, "
+                f"time IQM {e['time_iqm']:.4f} s, energy {e['energy_mean']:.1f} J")
+
+    optimal = _find(entries, "c11", "optimal")
+    text = "optimal reference on the C11 target: success, no collision, time within 2 % of 1.2217 s"
+    if optimal:
+        e = optimal[0]
+        check(text, e["success_rate"] == 1.0 and e["collision_rate"] == 0.0
+              and e["time_iqm"] <= 1.02 * MINIMUM_TIME_BOUND,
+              summary(e) + f" ({100 * (e['time_iqm'] / MINIMUM_TIME_BOUND - 1):+.2f} % over the bound)")
+    else:
+        check(text, None, "not evaluated")
+    heuristic = _find(entries, "c11", "heuristic")
+    best = _best_learned(_find(entries, "c11", "learned"), 1.0)
+    text = ("best learned on the C11 target: 100 % success and 0 collisions on every seed, IQM time <= 1.35 s, "
+            "energy <= 2x the heuristic's")
+    if best and heuristic:
+        check(text, _clean_every_seed(best) and best["time_iqm"] <= 1.35
+              and best["energy_mean"] <= 2 * heuristic[0]["energy_mean"],
+              summary(best) + f"; heuristic ({heuristic[0]['name']}) {heuristic[0]['energy_mean']:.1f} J")
+    else:
+        check(text, None, "not evaluated")
+    heuristic_random = _find(entries, "random-targets", "heuristic")
+    best = _best_learned(_find(entries, "random-targets", "learned"), 0.99)
+    text = "randomized targets: >= 99 % success, 0 collisions, IQM time below the heuristic's"
+    if best and heuristic_random:
+        check(text, best["success_rate"] >= 0.99 and best["collision_rate"] == 0.0
+              and best["time_iqm"] < heuristic_random[0]["time_iqm"],
+              summary(best) + f"; heuristic {heuristic_random[0]['time_iqm']:.4f} s")
+    else:
+        check(text, None, "not evaluated")
+    robust = [e for c in SHIFTS for e in _find(entries, c, "learned", ROBUST_ALGORITHM)]
+    text = f"domain-randomized agent ({ROBUST_ALGORITHM}) under the four shifts: >= 95 % success, 0 collisions in each"
+    if len(robust) == len(SHIFTS):
+        check(text, all(e["success_rate"] >= 0.95 and e["collision_rate"] == 0.0 for e in robust),
+              "; ".join(f"{e['condition']} {e['success_rate']:.2f} / {e['collision_rate']:.2f}" for e in robust))
+    else:
+        check(text, None, f"evaluated in {len(robust)} of {len(SHIFTS)} shifts")
+    text = "fast and frugal: a learned algorithm faster (IQM) than the heuristic on the C11 target with at most its energy"
+    learned = _find(entries, "c11", "learned")
+    if learned and heuristic:
+        h = heuristic[0]
+        frugal = [e for e in learned if e["time_iqm"] < h["time_iqm"] and e["energy_mean"] <= h["energy_mean"]]
+        closest = min(learned, key=lambda e: e["energy_mean"] / h["energy_mean"] + e["time_iqm"] / h["time_iqm"])
+        check(text, bool(frugal), summary(frugal[0] if frugal else closest)
+              + f"; heuristic {h['time_iqm']:.4f} s, {h['energy_mean']:.1f} J")
+    else:
+        check(text, None, "not evaluated")
+    seconds = {e["algorithm"]: [s.get("train_seconds") for s in e["per_seed"]] for e in learned}
+    text = f"each training run <= {TRAINING_BUDGET / 60:.0f} min on 2 CPU cores"
+    if seconds:
+        longest = {a: max(v for v in values if v is not None) for a, values in seconds.items()
+                   if any(v is not None for v in values)}
+        check(text, all(v <= TRAINING_BUDGET for v in longest.values()),
+              "longest run: " + ", ".join(f"{a} {v / 60:.1f} min" for a, v in longest.items()))
+    else:
+        check(text, None, "not evaluated")
+    return checks
+
+
 def markdown(entries: list[dict]) -> str:
-    lines = []
+    lines = ["#### Targets", "", "| target | met | reached |", "|---|---|---|"]
+    for c in target_checks(entries):
+        met = {True: "yes", False: "**no**", None: "-"}[c["met"]]
+        lines.append(f"| {c['target']} | {met} | {c['reached']} |")
+    lines.append("")
     for name in dict.fromkeys(e["condition"] for e in entries):
         lines += [f"#### {name}: {CONDITIONS[name].description}", "",
                   "| policy | kind | mode | seeds | episodes | success | collisions | time to target, IQM [95 % CI] (s) "
@@ -303,6 +401,7 @@ def main(argv: list[str] | None = None) -> list[dict]:
     args.out.mkdir(parents=True, exist_ok=True)
     command = "python -m agents.compare " + " ".join(argv if argv is not None else __import__("sys").argv[1:])
     (args.out / "comparison.json").write_text(json.dumps({"env_id": LATEST_ENV_ID, "command": command,
+                                                           "targets": target_checks(entries),
                                                            "policies": entries}, indent=1))
     (args.out / "comparison.md").write_text(markdown(entries))
     figures(entries, traces, learned_runs(args.runs), args.out)

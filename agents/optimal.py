@@ -456,25 +456,36 @@ def main(argv: list[str] | None = None) -> dict:
     parser.add_argument("--target", nargs=3, type=float, default=list(DEFAULT_PARAMS.task.target))
     parser.add_argument("--write", type=Path, default=None,
                         help="write the solutions as JSON here (the shipped file: agents/optimal_solutions/c11.json)")
+    parser.add_argument("--condition", default="c11",
+                        help="a parameter shift of agents.compare.CONDITIONS (load-x2, wall-closer, "
+                             "current-limits-15, resistance+20); default c11, the C11 parameters")
     parser.add_argument("--verbose", action="store_true")
     args = parser.parse_args(argv)
+    from agents.compare import CONDITIONS
+
+    shifts = [name for name, c in CONDITIONS.items() if not c.randomize_target]
+    if args.condition not in shifts:
+        parser.error(f"--condition must be one of {shifts}, got {args.condition!r}")
+    params = DEFAULT_PARAMS.replace(CONDITIONS[args.condition].params)
     config = CollocationConfig()
     bound_config = CollocationConfig(wall_margin=0.0, band_margin=0.0)
     started = time.perf_counter()
-    free = minimum_time("free", args.start, args.target, config=bound_config, verbose=args.verbose)
+    free = minimum_time("free", args.start, args.target, params, config=bound_config, verbose=args.verbose)
     print(f"free (the continuous-time bound, no margins): {free.time:.5f} s ({free.status}); critical from "
           f"{free.phase_times[0]:.4f} s, q3 at h_obs {free.phase_times[1]:.4f} s")
-    held = minimum_time("held", args.start, args.target, config=config, verbose=args.verbose)
-    result = replay(held.actions, start=args.start, target=args.target)
+    held = minimum_time("held", args.start, args.target, params, config=config, verbose=args.verbose)
+    result = replay(held.actions, start=args.start, target=args.target, params=params)
     print(f"held (0.01 s steps, margins {config.wall_margin} m / {config.band_margin}): {held.time:.5f} s in the "
           f"transcription ({held.status}); replayed in Scara-C11-v1: success {result['success']}, collisions "
           f"{result['collisions']}, time {result['reach_time']:.5f} s, energy {result['energy']:.1f} J")
-    data = {"start": list(args.start), "target": list(args.target), "params": _params_key(DEFAULT_PARAMS),
+    data = {"start": list(args.start), "target": list(args.target), "condition": args.condition,
+            "overrides": CONDITIONS[args.condition].params, "params": _params_key(params),
             "config": asdict(config), "free": {**free.to_json(), "config": asdict(bound_config)}, "held": held.to_json(),
             "replay": {k: result[k] for k in ("success", "collisions", "reach_time", "energy", "steps")},
             "seconds": time.perf_counter() - started,
             "command": "python -m agents.optimal" + (f" --start {' '.join(map(str, args.start))}"
-                                                     f" --target {' '.join(map(str, args.target))}")}
+                                                     f" --target {' '.join(map(str, args.target))}"
+                                                     f" --condition {args.condition}")}
     if args.write:
         args.write.parent.mkdir(parents=True, exist_ok=True)
         args.write.write_text(json.dumps(data, indent=1))

@@ -50,15 +50,21 @@ def resolve_model(name_or_path: str | Path) -> Path:
                             f"or a shipped model name {shipped_models()}")
 
 
+VARIANTS = ("dr", "frugal")
+"""Blocks "MODE-VARIANT" of ppo_residual.yml: domain randomization, the energy-aware reward."""
+
+
 def load_hyperparams(env_id: str = ENV_ID, control_mode: str = "pd", path: Path = HYPERPARAMS,
-                     randomize_target: bool = False) -> dict:
-    """The YAML entry env_id -> control mode ("MODE-random" with randomized targets, if present)."""
+                     randomize_target: bool = False, variant: str | None = None) -> dict:
+    """The YAML entry env_id -> control mode ("MODE-random" with randomized targets, if present;
+    "MODE-VARIANT" for a variant)."""
     table = yaml.safe_load(Path(path).read_text())
-    if env_id not in table or control_mode not in table[env_id]:
-        raise KeyError(f"no PPO hyperparameters for {env_id!r} / {control_mode!r} in {path}")
-    if randomize_target and f"{control_mode}-random" in table[env_id]:
-        return dict(table[env_id][f"{control_mode}-random"])
-    return dict(table[env_id][control_mode])
+    key = control_mode if variant is None else f"{control_mode}-{variant}"
+    if env_id not in table or key not in table[env_id]:
+        raise KeyError(f"no PPO hyperparameters for {env_id!r} / {key!r} in {path}")
+    if randomize_target and f"{key}-random" in table[env_id]:
+        return dict(table[env_id][f"{key}-random"])
+    return dict(table[env_id][key])
 
 
 class ResidualSetpoint:
@@ -106,11 +112,14 @@ class ResidualVecEnv(VecEnvWrapper):
 def train(control_mode: str = "pd", randomize_target: bool = False, seed: int = 0,
           total_timesteps: int | None = None, out: str | Path = "runs/ppo_pd",
           hyperparams: dict | None = None, eval_freq: int = 25_000, eval_episodes: int = 10,
-          progress_bar: bool = True, env_id: str = ENV_ID) -> Path:
+          progress_bar: bool = True, env_id: str = ENV_ID, variant: str | None = None) -> Path:
     """Train the engineered PPO agent (agents.training.train with the residual set-point);
     writes model.zip, vecnormalize.pkl, config.json, checkpoints/, eval/ and tb/, and
-    resumes from its snapshot when run again into the same folder."""
-    hyper = (load_hyperparams(env_id, control_mode, randomize_target=randomize_target)
+    resumes from its snapshot when run again into the same folder. ``variant`` ("dr",
+    "frugal") takes the YAML block "MODE-VARIANT"."""
+    if variant is not None and variant not in VARIANTS:
+        raise ValueError(f"variant must be None or one of {VARIANTS}, got {variant!r}")
+    hyper = (load_hyperparams(env_id, control_mode, randomize_target=randomize_target, variant=variant)
              if hyperparams is None else dict(hyperparams))
     hyper.setdefault("eval_freq", eval_freq)
     hyper.setdefault("eval_episodes", eval_episodes)
@@ -119,7 +128,7 @@ def train(control_mode: str = "pd", randomize_target: bool = False, seed: int = 
     total_timesteps = int(total_timesteps or hyper["n_timesteps"])
     command = (f"python -m agents.train --env-id {env_id} --control-mode {control_mode} --seed {seed} "
                f"--total-timesteps {total_timesteps}" + (" --randomize-target" if randomize_target else "")
-               + f" --out {out}")
+               + (f" --variant {variant}" if variant else "") + f" --out {out}")
     return run_training("ppo", out, env_id, control_mode, seed, hyper, total_timesteps, progress_bar, command)
 
 
@@ -137,6 +146,8 @@ def main(argv: list[str] | None = None) -> Path:
     parser.add_argument("--env-id", default=ENV_ID)
     parser.add_argument("--control-mode", choices=("pd", "voltage"), default="pd")
     parser.add_argument("--randomize-target", action="store_true")
+    parser.add_argument("--variant", choices=VARIANTS, default=None,
+                        help="dr: physics and wall randomized per episode; frugal: an energy cost in the reward")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--total-timesteps", type=int, default=None, help="default: n_timesteps of the YAML")
     parser.add_argument("--hyperparams", type=Path, default=HYPERPARAMS)
@@ -146,14 +157,15 @@ def main(argv: list[str] | None = None) -> Path:
         parser.add_argument("--" + name.replace("_", "-"), type=int, default=None,
                             help=f"override the YAML's {name} (e.g. for a quick trial)")
     args = parser.parse_args(argv)
-    hyper = load_hyperparams(args.env_id, args.control_mode, args.hyperparams, args.randomize_target)
+    hyper = load_hyperparams(args.env_id, args.control_mode, args.hyperparams, args.randomize_target, args.variant)
     for name in ("n_envs", "n_steps", "batch_size"):
         if getattr(args, name) is not None:
             if getattr(args, name) < 1:
                 parser.error(f"--{name.replace('_', '-')} must be >= 1, got {getattr(args, name)}")
             hyper[name] = getattr(args, name)
-    out = args.out or Path("runs") / (f"ppo_{args.control_mode}" + ("_random" if args.randomize_target else ""))
+    out = args.out or Path("runs") / (f"ppo_{args.control_mode}" + ("_random" if args.randomize_target else "")
+                                      + (f"_{args.variant}" if args.variant else ""))
     return train(args.control_mode, args.randomize_target, args.seed, args.total_timesteps, out, hyper,
-                 progress_bar=not args.no_progress_bar, env_id=args.env_id)
+                 progress_bar=not args.no_progress_bar, env_id=args.env_id, variant=args.variant)
 
 

@@ -3,15 +3,17 @@
 - :mod:`~scara_gym.envs.task`: :class:`ScaraTask` (configuration, records, episodes, info),
   :class:`RewardWeights`, the observation layout and the set-point <-> action mapping;
 - :mod:`~scara_gym.envs.core`: the compiled per-robot step;
+- :mod:`~scara_gym.envs.randomization`: parameters drawn per episode (:class:`ParameterRanges`);
 - :mod:`~scara_gym.envs.scara_env`: :class:`ScaraEnv` (``Scara-C11-v0``);
 - :mod:`~scara_gym.envs.vector`: :class:`ScaraVectorEnv`, the native vector environment;
 - :mod:`~scara_gym.envs.rendering`: the matplotlib renderer.
 """
 
+from scara_gym.envs.randomization import PRESETS as RANDOMIZATION_PRESETS, ParameterRanges
 from scara_gym.envs.scara_env import ScaraEnv
 from scara_gym.envs.task import (
     OBSERVATION_LAYOUT, OBSERVATION_NAMES, REWARD_TERMS, RewardWeights, ScaraTask,
 )
 
-__all__ = ["OBSERVATION_LAYOUT", "OBSERVATION_NAMES", "REWARD_TERMS", "RewardWeights", "ScaraEnv",
-           "ScaraTask"]
+__all__ = ["OBSERVATION_LAYOUT", "OBSERVATION_NAMES", "RANDOMIZATION_PRESETS", "REWARD_TERMS", "ParameterRanges",
+           "RewardWeights", "ScaraEnv", "ScaraTask"]

@@ -189,9 +189,10 @@ def robot_step(action, robot, p, config, task, log, outcome, obs):
 def pd_actions(obs, setpoints, params, out):
     """The "voltage"-mode actions that apply the C11 PD law (eq. 15-16, ``pd_voltage``) to
     set-points on observations: U / limit, the limit widened where the observation says
-    critical. obs (n, N_OBS) and setpoints (n, 3) float64; out (n, 3)."""
-    p = params[0]
+    critical. obs (n, N_OBS) and setpoints (n, 3) float64; params: one record per row, or
+    one for all rows; out (n, 3)."""
     for i in range(obs.shape[0]):
+        p = params[i if params.shape[0] > 1 else 0]
         widened = obs[i, O_CRITICAL] > 0.5
         for axis in range(3):
             limit = voltage_limit(p, axis, widened)

@@ -59,6 +59,18 @@ class ScaraRenderer:
         (self.target_height,) = self.gauge.plot([0.1, 0.9], [0, 0], "r-", lw=2)
         self.label = self.top.text(0.02, 0.98, "", transform=self.top.transAxes, va="top", family="monospace")
 
+    def set_params(self, params: ScaraParams) -> None:
+        """Draw an episode with other parameters (a randomized wall, other link lengths)."""
+        if params is self.params:
+            return
+        self.params, self._p = params, params.to_record()
+        obs = params.obstacle
+        self.wall_band.remove()
+        self.wall_band = self.top.axvspan(obs.x_position - obs.critical_distance,
+                                          obs.x_position + obs.critical_distance, color="0.88")
+        self.wall.set_xdata([obs.x_position, obs.x_position])
+        self.wall_height.set_ydata([obs.height, obs.height])
+
     def draw(self, q, target, trace, obstacle: bool, critical: bool, time: float, collisions: int):
         elbow = elbow_position(q[0], self._p)
         tip = tip_position(q[0], q[1], q[2], self._p)

@@ -98,6 +98,16 @@ class ScaraEnv(gym.Env):
     every draw does): every such target needs the wall passed and is reachable above it.
     ``reset(options={"target": ..., "start": ...})`` overrides either for one episode.
 
+    With ``randomize_params``, model parameters are drawn per episode, before the target,
+    from uniform ranges (``scara_gym.envs.randomization``): the preset "physics" (or True)
+    draws the load mass (nominal x [0.5, 2.5]), the link masses (x [0.9, 1.1]) and per axis
+    the motor resistance (x [0.9, 1.3]), torque constant (x [0.9, 1.1]) and current limit
+    (x [0.8, 1.1]); "wall" draws x_obs (nominal +- 0.04 m) and h_obs (+- 0.03 m); "all"
+    both; a dict {dotted path: (low, high)} gives ranges of its own, in the parameter's
+    unit. ``reset(options={"params": {"arm.load_mass": 1.0}})`` sets parameters for one
+    episode, over any draw. The drawn and set values are in the reset info
+    (``info["params"]``) and in ``env.unwrapped.episode_params``.
+
     ## Episode end
 
     - terminated: the target is reached (``info["is_success"]``), or a collision with
@@ -116,7 +126,9 @@ class ScaraEnv(gym.Env):
     critical, time (s), energy (J, episode total),
     current_limited (3 bools: held at its limit at the end of the step), voltage (V, at
     the end of the step), clipped_actions (components clipped this step), target; and
-    reach_time (s, the located instant) on the step that reaches the target.
+    reach_time (s, the located instant) on the step that reaches the target. The reset
+    info holds target and start, and params (dotted path -> value) where parameters were
+    drawn or set for the episode.
 
     ## Arguments
 
@@ -142,6 +154,9 @@ class ScaraEnv(gym.Env):
       found; the saturation is a located switch, not a kink); Scara-C11-v1 registers
       True. False is the 0.1 integration of Scara-C11-v0, which sees switches at the
       ends of integration steps only.
+    - randomize_params (False): False, True ("physics"), "physics", "wall", "all" or a
+      dict {dotted path: (low, high)}: parameters drawn per episode, see the starting
+      state; the observation bounds then hold the ranges' ends.
     - render_mode (None): "rgb_array" (headless) or "human" (needs a display).
 
     ## Version history
@@ -165,10 +180,10 @@ class ScaraEnv(gym.Env):
                  reward_weights: RewardWeights | dict | None = None, control_dt: float = 0.01,
                  time_limit: float = 3.0, params: ScaraParams | dict | None = None,
                  rtol: float = 1e-5, atol: float = 1e-6, exact_switches: bool = False,
-                 render_mode: str | None = None) -> None:
+                 randomize_params=False, render_mode: str | None = None) -> None:
         self.task = ScaraTask(control_mode, obstacle, collision, target, start, randomize_target,
                               reward_weights, control_dt, time_limit, params, rtol, atol,
-                              exact_switches, num_robots=1)
+                              exact_switches, num_robots=1, randomize_params=randomize_params)
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
             raise ValueError(f"render_mode must be one of {self.metadata['render_modes']} or None, "
                              f"got {render_mode!r}")
@@ -197,6 +212,11 @@ class ScaraEnv(gym.Env):
     reward_weights = property(lambda self: self.task.reward_weights)
     control_dt = property(lambda self: self.task.control_dt)
     time_limit = property(lambda self: self.task.time_limit)
+
+    @property
+    def episode_params(self) -> ScaraParams:
+        """The parameters of the current episode: ``params`` unless randomized or overridden."""
+        return self.task.episode_params[0]
 
     @property
     def state(self) -> np.ndarray:
@@ -265,6 +285,7 @@ class ScaraEnv(gym.Env):
         if self._renderer is None:
             from scara_gym.envs.rendering import ScaraRenderer
             self._renderer = ScaraRenderer(self.params, human=self.render_mode == "human")
+        self._renderer.set_params(self.episode_params)  # a randomized wall is drawn where it is
         frame = self._renderer.draw(
             q=self._robot["x"][R.Q:R.Q + 3], target=self.target, trace=self._trace, obstacle=self.obstacle,
             critical=bool(self._robot["critical"]), time=self.time,

@@ -18,6 +18,7 @@ import math
 import threading
 from collections.abc import Mapping
 from dataclasses import dataclass, fields
+from typing import NamedTuple
 
 import numpy as np
 
@@ -28,6 +29,7 @@ from scara_gym.envs.core import (
 from scara_gym.model import records as R
 from scara_gym.model.dynamics import tip_position
 from scara_gym.model import checks
+from scara_gym.envs.randomization import ParameterRanges, check_overrides, within_bounds
 from scara_gym.model.params import DEFAULT_PARAMS, ScaraParams, resolve_params
 from scara_gym.model.simulator import CONTROLS, SimulationError, check_state, check_tolerance, failure_message
 
@@ -125,6 +127,20 @@ def draw_target(rng: np.random.Generator, start: np.ndarray, params: ScaraParams
                        "rules with these parameters")
 
 
+class EpisodePlan(NamedTuple):
+    """A checked episode start: what :meth:`ScaraTask.begin_episode` applies to one robot."""
+
+    start: np.ndarray
+    target: np.ndarray
+    params: ScaraParams
+    """the episode's parameters (the nominal ones unless randomized or overridden)"""
+    varied: dict
+    """dotted path -> value of every parameter drawn or overridden for this episode"""
+
+
+RESET_OPTIONS = ("target", "start", "params")
+
+
 def _reward_weights(reward_weights) -> RewardWeights:
     if reward_weights is None:
         return RewardWeights()
@@ -148,7 +164,7 @@ class ScaraTask:
                  reward_weights: RewardWeights | dict | None = None, control_dt: float = 0.01,
                  time_limit: float = 3.0, params: ScaraParams | dict | None = None,
                  rtol: float = 1e-5, atol: float = 1e-6, exact_switches: bool = False,
-                 num_robots: int = 1) -> None:
+                 num_robots: int = 1, randomize_params=False) -> None:
         self.control_mode = checks.choice("control_mode", control_mode, CONTROL_MODES)
         self.obstacle = checks.flag("obstacle", obstacle)
         self.collision_mode = checks.choice("collision", collision, COLLISION_MODES)
@@ -164,6 +180,9 @@ class ScaraTask:
                 f"scara_gym.obstacle_avoidance(dec=...) (the model) and agents.policies.DecPolicy "
                 f"(a policy for this environment). Leave obstacle.dec at {DEFAULT_DEC:g}")
         self.reward_weights = _reward_weights(reward_weights)
+        self.randomization = ParameterRanges.from_argument(randomize_params, self.params)
+        # the observation bounds hold every episode's parameters: built around the range ends
+        self.bound_params = self.randomization.extreme(self.params) if self.randomization else self.params
         self.rtol = check_tolerance("rtol", rtol)
         self.atol = check_tolerance("atol", atol)
         self.exact_switches = checks.flag("exact_switches", exact_switches)
@@ -194,7 +213,10 @@ class ScaraTask:
             constants[f"{term}_weight"] = getattr(self.reward_weights, term)
         constants["setpoint_center"], constants["setpoint_half"] = self.setpoint_center, self.setpoint_half
         constants["obs_low"], constants["obs_high"] = self.obs_low, self.obs_high
-        self.robot_params = np.repeat(np.array([self.params.to_record()], dtype=R.PARAMS), n)
+        self.nominal_record = self.params.to_record()
+        self.robot_params = np.repeat(np.array([self.nominal_record], dtype=R.PARAMS), n)
+        self.episode_params = [self.params] * n
+        """each robot's parameters in its current episode"""
         self.robots = np.zeros(n, dtype=R.ROBOT)
         self.log = np.zeros((n, EVENT_LOG_SIZE), dtype=R.EVENT)
         self.outcomes = np.zeros(n, dtype=OUTCOME)
@@ -203,13 +225,13 @@ class ScaraTask:
 
     # -- layouts and mappings ------------------------------------------------------------
     def _observation_bounds(self) -> tuple[np.ndarray, np.ndarray]:
-        reach = self.params.arm.reach
-        obs = self.params.obstacle
+        reach = self.bound_params.arm.reach
+        obs = self.bound_params.obstacle
         wall = reach + abs(obs.x_position)
         margin = HEIGHT_BOUND + abs(obs.height)
         high = np.array([
             ANGLE_BOUND, ANGLE_BOUND, HEIGHT_BOUND, ANGLE_RATE_BOUND, ANGLE_RATE_BOUND, HEIGHT_RATE_BOUND,
-            *self.params.current_limits, 2 * ANGLE_BOUND, 2 * ANGLE_BOUND, 2 * HEIGHT_BOUND,
+            *self.bound_params.current_limits, 2 * ANGLE_BOUND, 2 * ANGLE_BOUND, 2 * HEIGHT_BOUND,
             reach, reach, wall, margin, 1.0, 1.0])
         low = -high
         low[OBSERVATION_LAYOUT["critical"]] = low[OBSERVATION_LAYOUT["time_left"]] = 0.0
@@ -231,7 +253,9 @@ class ScaraTask:
         single = np.ndim(obs) == 1
         obs = np.atleast_2d(np.asarray(obs, dtype=np.float64))
         setpoints = np.ascontiguousarray(np.broadcast_to(np.asarray(setpoint, dtype=np.float64), (len(obs), 3)))
-        out = pd_actions(np.ascontiguousarray(obs), setpoints, self.robot_params, np.empty((len(obs), 3)))
+        # robot i's parameters for row i of a batch over all robots, else the first robot's
+        params = self.robot_params if len(obs) == self.num_robots else self.robot_params[:1]
+        out = pd_actions(np.ascontiguousarray(obs), setpoints, params, np.empty((len(obs), 3)))
         return out[0] if single else out
 
     @staticmethod
@@ -242,28 +266,51 @@ class ScaraTask:
                                  range_text=JOINT_RANGE_TEXT)
 
     # -- episodes ------------------------------------------------------------------------
-    def episode_start(self, rng: np.random.Generator, options: dict | None) -> tuple[np.ndarray, np.ndarray]:
-        """(start, target) of a new episode from the reset options and the episode RNG."""
-        options = checks.mapping("reset options", options, ("target", "start"))
+    def episode_start(self, rng: np.random.Generator, options: dict | None) -> EpisodePlan:
+        """The checked start of a new episode from the reset options and the episode RNG: the
+        parameters first (drawn where randomized, then ``options["params"]`` overrides), then
+        start and target (a randomized target is drawn against the episode's wall)."""
+        options = checks.mapping("reset options", options, RESET_OPTIONS)
+        varied = self.randomization.draw(rng) if self.randomization else {}
+        if "params" in options:
+            varied.update(check_overrides("options['params']", options["params"], self.params))
+        params = self.params
+        if varied:
+            try:
+                params = self.params.replace(varied)
+            except (KeyError, TypeError, ValueError) as error:
+                raise ValueError(f"options['params']: {error}") from None
+            problem = within_bounds(params, self.bound_params)
+            if problem:
+                raise ValueError(f"options['params']: {problem}, built from the construction arguments "
+                                 f"params and randomize_params; widen them there")
         start = self.check_joints(options["start"], "options['start']") if "start" in options else self.default_start
         if "target" in options:
             target = self.check_joints(options["target"], "options['target']")
         elif self.randomize_target:
-            target = draw_target(rng, start, self.params, self.obstacle)
+            target = draw_target(rng, start, params, self.obstacle)
         else:
             target = self.default_target
         if np.max(np.abs(start - target)) < self.params.task.accuracy:
             raise ValueError(f"start {start.tolist()} is already within acc of the target {target.tolist()}")
-        return start.copy(), target.copy()
+        return EpisodePlan(start.copy(), target.copy(), params, varied)
 
     def reset_robot(self, i: int, rng: np.random.Generator, options: dict | None = None) -> dict:
-        """Start a new episode of robot i; returns the reset info (target, start)."""
-        start, target = self.episode_start(rng, options)
-        self.begin_episode(i, start, target)
-        return {"target": target, "start": start}
+        """Start a new episode of robot i; returns the reset info (target, start, and params:
+        the drawn or overridden parameters, where any)."""
+        plan = self.episode_start(rng, options)
+        self.begin_episode(i, plan)
+        info = {"target": plan.target, "start": plan.start}
+        if plan.varied:
+            info["params"] = dict(plan.varied)
+        return info
 
-    def begin_episode(self, i: int, start: np.ndarray, target: np.ndarray) -> None:
-        """Robot i at rest at q = start with its target (both checked by episode_start)."""
+    def begin_episode(self, i: int, plan: EpisodePlan) -> None:
+        """Robot i at rest at the plan's start, with its target and parameters."""
+        start, target = plan.start, plan.target
+        if plan.params is not self.episode_params[i]:
+            self.robot_params[i] = self.nominal_record if plan.params is self.params else plan.params.to_record()
+            self.episode_params[i] = plan.params
         self.robot_params["target"][i] = target
         robot = self.robots[i]
         robot["x"] = 0.0

@@ -21,7 +21,7 @@ from gymnasium.utils import seeding
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
-from scara_gym.envs.task import ScaraTask, check_actions
+from scara_gym.envs.task import RESET_OPTIONS, ScaraTask, check_actions
 from scara_gym.model import checks
 
 
@@ -34,7 +34,10 @@ class ScaraVectorEnv(VectorEnv):
     where another library, e.g. torch in training, takes the cores between steps). Rendering is not supported in the
     vector environment (render_mode must be None). info holds arrays over the robots:
     is_success, cost, collision, collisions, critical, time, energy, clipped_actions,
-    reward_terms (a dict of arrays) and reach_time (masked by ``_reach_time``).
+    reward_terms (a dict of arrays) and reach_time (masked by ``_reach_time``). With
+    ``randomize_params`` every robot draws its own parameters per episode, as the single
+    environment seeded ``seed + i`` does; the reset info's ``params`` holds one array per
+    drawn path over the robots.
     """
 
     metadata = {"autoreset_mode": AutoresetMode.NEXT_STEP, "render_modes": []}
@@ -87,16 +90,21 @@ class ScaraVectorEnv(VectorEnv):
     # -- episodes ----------------------------------------------------------------------
     def reset(self, *, seed: int | list[int | None] | None = None, options: dict | None = None):
         seeds = self._seeds(seed)
-        options = checks.mapping("reset options", options, ("target", "start"))
-        # every robot's start and target are checked before any robot changes
+        options = checks.mapping("reset options", options, RESET_OPTIONS)
+        # every robot's start, target and parameters are checked before any robot changes
         rngs = [self._rngs[i] if s is None else seeding.np_random(s)[0] for i, s in enumerate(seeds)]
         plans = [self.task.episode_start(rng, options) for rng in rngs]
         self._rngs = rngs
-        for i, (start, target) in enumerate(plans):
-            self.task.begin_episode(i, start, target)
+        for i, plan in enumerate(plans):
+            self.task.begin_episode(i, plan)
         self._prev_done[:] = False
         self._started = True
-        return self.task.obs.copy(), {"target": self.targets}
+        info = {"target": self.targets}
+        varied = sorted({path for plan in plans for path in plan.varied})
+        if varied:  # the drawn or overridden parameters, one array per path over the robots
+            info["params"] = {path: np.array([plan.varied.get(path, np.nan) for plan in plans])
+                              for path in varied}
+        return self.task.obs.copy(), info
 
     def _seeds(self, seed) -> list[int | None]:
         text = f"seed must be None, an integer >= 0 or a list of {self.num_envs} such seeds or None"

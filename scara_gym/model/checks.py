@@ -48,15 +48,22 @@ def is_real(value: Any) -> bool:
 def real(name: str, value: Any, low: float = -math.inf, high: float = math.inf, *, unit: str = "",
          low_open: bool = False, high_open: bool = False) -> float:
     """A finite real number in the interval, as a float."""
-    text = f"{name} must be a finite number {_interval(low, high, low_open, high_open)}{_unit(unit)}"
-    if not is_real(value):
-        raise TypeError(f"{text}, got {value!r} ({type(value).__name__})")
-    number = float(value)
+    if type(value) is float:  # the common case, checked without building the message
+        number = value
+    elif is_real(value):
+        number = float(value)
+    else:
+        raise TypeError(f"{_real_text(name, low, high, unit, low_open, high_open)}, got {value!r} "
+                        f"({type(value).__name__})")
     inside = math.isfinite(number) and (low < number if low_open else low <= number) and (
         number < high if high_open else number <= high)
     if not inside:
-        raise ValueError(f"{text}, got {value!r}")
+        raise ValueError(f"{_real_text(name, low, high, unit, low_open, high_open)}, got {value!r}")
     return number
+
+
+def _real_text(name: str, low: float, high: float, unit: str, low_open: bool, high_open: bool) -> str:
+    return f"{name} must be a finite number {_interval(low, high, low_open, high_open)}{_unit(unit)}"
 
 
 def integer(name: str, value: Any, low: int, high: int | None = None) -> int:

@@ -211,6 +211,11 @@ class ScaraParams:
             if not isinstance(path, str):
                 raise TypeError(f"parameter override keys must be dotted paths such as 'arm.load_mass', "
                                 f"got {path!r}")
+        if len(items) > 1:
+            try:  # one new node per changed subtree (per-episode draws change a dozen leaves)
+                return _replace_tree(self, _path_tree(items))
+            except (KeyError, TypeError, ValueError):
+                pass  # one path at a time below, which names the override at fault
         result = self
         for path, value in items.items():
             try:
@@ -237,6 +242,43 @@ class ScaraParams:
         record["target"] = self.task.target
         record["accuracy"] = self.task.accuracy
         return record
+
+
+_LEAF = object()
+
+
+def _path_tree(items: Mapping[str, Any]) -> dict:
+    """Dotted paths -> a nested dict of their parts, the values under _LEAF keys."""
+    tree: dict = {}
+    for path, value in items.items():
+        node = tree
+        for part in path.split("."):
+            node = node.setdefault(part, {})
+        if node:
+            raise ValueError(f"override {path!r} is both a leaf and a subtree")
+        node[_LEAF] = value
+    return tree
+
+
+def _replace_tree(node: Any, tree: dict) -> Any:
+    if _LEAF in tree:
+        if len(tree) > 1:
+            raise ValueError("a leaf and its subtree overridden together")
+        return tree[_LEAF]
+    if isinstance(node, tuple) and not dataclasses.is_dataclass(node):
+        items = list(node)
+        for part, subtree in tree.items():
+            if not part.isdigit() or int(part) >= len(items):
+                raise KeyError(part)
+            items[int(part)] = _replace_tree(items[int(part)], subtree)
+        return tuple(items)
+    if not dataclasses.is_dataclass(node):
+        raise KeyError(tree)
+    names = {f.name for f in dataclasses.fields(node)}
+    if not set(tree) <= names:
+        raise KeyError(sorted(set(tree) - names))
+    return dataclasses.replace(node, **{part: _replace_tree(getattr(node, part), subtree)
+                                        for part, subtree in tree.items()})
 
 
 def _replace_path(node: Any, parts: list[str], value: Any, full: str) -> Any:

@@ -51,4 +51,37 @@ def test_comparison_command_writes_every_policy(tmp_path):
                                         "comparison_learning_curves.png"}
     table = compare.markdown(entries)
     assert "| optimal | optimal | voltage |" in table and "seed 1:" in table
+    assert table.startswith("#### Targets") and "| optimal reference on the C11 target" in table
     json.dumps(entries)  # the JSON other tools read
+
+
+def _entry(condition, kind, algorithm=None, success=1.0, collisions=0.0, time=1.5, energy=70.0, seeds=None,
+           train_seconds=600.0):
+    e = {"name": algorithm or kind, "kind": kind, "algorithm": algorithm, "condition": condition,
+         "success_rate": success, "collision_rate": collisions, "time_iqm": time, "energy_mean": energy}
+    if seeds:
+        e["per_seed"] = [{"seed": s, "success_rate": success, "collision_rate": collisions,
+                          "train_seconds": train_seconds} for s in seeds]
+    return e
+
+
+def test_target_checks_say_met_or_the_number_reached():
+    entries = [_entry("c11", "heuristic", time=1.60, energy=70.0),
+               _entry("c11", "optimal", time=1.2241, energy=43.0),
+               _entry("c11", "learned", "ppo", time=1.34, energy=60.0, seeds=[0, 1]),
+               _entry("c11", "learned", "sac", success=0.5, time=1.20, energy=500.0, seeds=[0, 1], train_seconds=2000),
+               _entry("random-targets", "heuristic", time=1.55),
+               _entry("random-targets", "learned", "ppo", success=0.98, time=1.40, seeds=[0, 1])]
+    entries += [_entry(c, "learned", compare.ROBUST_ALGORITHM, success=0.97, seeds=[0]) for c in compare.SHIFTS]
+    checks = {c["target"].split(":")[0]: c for c in compare.target_checks(entries)}
+    assert checks["optimal reference on the C11 target"]["met"] is True
+    best = checks["best learned on the C11 target"]
+    assert best["met"] is True and best["reached"].startswith("ppo:")  # sac is faster but fails seeds
+    assert checks["randomized targets"]["met"] is False and "success 0.98" in checks["randomized targets"]["reached"]
+    assert checks["domain-randomized agent (ppo-residual-dr) under the four shifts"]["met"] is True
+    assert checks["fast and frugal"]["met"] is True
+    training_check = checks["each training run <= 30 min on 2 CPU cores"]
+    assert training_check["met"] is False and "sac 33.3 min" in training_check["reached"]
+    slow = compare.target_checks([_entry("c11", "optimal", time=1.26)])
+    assert slow[0]["met"] is False and "+3.13 %" in slow[0]["reached"]
+    assert [c["met"] for c in slow[1:]] == [None] * (len(slow) - 1)

@@ -72,3 +72,26 @@ def test_an_interrupted_run_resumes_from_its_snapshot(algo, tmp_path, monkeypatc
     policy = training.SB3Policy(env, out)
     assert run_episode(env, policy, seed=0)["steps"] >= 1
     assert training.train(algo, out) == out.resolve()  # finished: nothing more to do
+
+
+@pytest.mark.parametrize("variant, expected", [
+    ("dr", {"randomize_params": "all"}),
+    ("frugal", {"reward_weights": {"time": 20.0, "collision": 100.0, "success": 50.0, "energy": 0.05}}),
+])
+def test_the_engineered_agents_variants_train_on_their_environment(variant, expected, tmp_path):
+    from agents import ppo
+
+    hyper = ppo.load_hyperparams("Scara-C11-v1", "pd", variant=variant)
+    for key, value in expected.items():
+        assert hyper["env_kwargs"][key] == value
+    hyper.update(n_envs=2, n_steps=50, batch_size=50, n_epochs=1, eval_freq=100, eval_episodes=1,
+                 snapshot_freq=100)
+    out = ppo.train("pd", seed=0, total_timesteps=100, out=tmp_path / variant, hyperparams=hyper,
+                    progress_bar=False, env_id="Scara-C11-v1", variant=variant)
+    config = json.loads((out / "config.json").read_text())
+    for key, value in expected.items():
+        assert config["env_kwargs"][key] == value
+    env = gym.make("Scara-C11-v1")
+    assert run_episode(env, training.SB3Policy(env, out), seed=0)["steps"] >= 1
+    with pytest.raises(ValueError, match="variant must be None or one of"):
+        ppo.train("pd", out=tmp_path / "x", variant="fast")
