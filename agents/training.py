@@ -3,7 +3,7 @@
 One function, :func:`train`, trains any of the three algorithms from a hyperparameter entry
 (RL-Zoo style YAML, ``agents/hyperparams/ALGO.yml``, keyed by env id then control mode):
 
-1. the training env: the registered id's integration arguments (``ENV_VERSIONS``) on the
+1. the training env: the registered id's arguments (``ENV_KWARGS``) on the
    native vector env through ``SB3VecEnv``, optionally a residual set-point wrapper (the
    engineered agent of agents/ppo.py only) and ``VecNormalize``;
 2. the evaluation env: ``gym.make(env_id)`` in a ``Monitor``, seeded ``10_000 + seed``
@@ -31,7 +31,7 @@ from pathlib import Path
 import numpy as np
 import yaml
 
-from scara_gym import ENV_VERSIONS, LATEST_ENV_ID
+from scara_gym import ENV_KWARGS, LATEST_ENV_ID
 
 HYPERPARAMS = Path(__file__).with_name("hyperparams")
 SHIPPED_MODELS = Path(__file__).with_name("models")
@@ -88,7 +88,7 @@ def make_envs(env_id: str, env_kwargs: dict, hyper: dict, seed: int, normalizer:
     from scara_gym.integrations.sb3 import SB3VecEnv
 
     train_env = SB3VecEnv(num_envs=hyper["n_envs"], num_threads=hyper.get("env_threads", 1),
-                          **ENV_VERSIONS[env_id], **env_kwargs)
+                          **{**ENV_KWARGS[env_id], **env_kwargs})
     train_env.seed(seed)
     eval_env = DummyVecEnv([lambda: Monitor(gym.make(env_id, **env_kwargs))])
     eval_env.seed(10_000 + seed)
@@ -184,8 +184,8 @@ def train(algo: str, out: str | Path, env_id: str = LATEST_ENV_ID, control_mode:
     import torch
     from stable_baselines3.common.callbacks import CheckpointCallback, EvalCallback
 
-    if env_id not in ENV_VERSIONS:
-        raise ValueError(f"env_id must be one of {sorted(ENV_VERSIONS)}, got {env_id!r}")
+    if env_id not in ENV_KWARGS:
+        raise ValueError(f"env_id must be one of {sorted(ENV_KWARGS)}, got {env_id!r}")
     hyper = dict(hyperparams) if hyperparams is not None else load_hyperparams(algo, env_id, control_mode)
     total_timesteps = int(total_timesteps or hyper["n_timesteps"])
     out = Path(out).resolve()

@@ -27,16 +27,29 @@ ENV_ID = "Scara-C11-v0"
 """The id the shipped agents were trained and are evaluated on."""
 LATEST_ENV_ID = "Scara-C11-v1"
 """The id for new work: the exact physics at its default tolerances."""
-ENV_IDS = tuple(ENV_VERSIONS)
+ENV_VARIANTS = {
+    # the C11 task with parameters drawn per episode (scara_gym.envs.randomization), on v1's physics
+    "Scara-C11-RandomPhysics-v0": {**ENV_VERSIONS[LATEST_ENV_ID], "randomize_params": "physics"},
+    "Scara-C11-RandomWall-v0": {**ENV_VERSIONS[LATEST_ENV_ID], "randomize_params": "wall"},
+}
+"""Registered variant id -> the arguments it fixes (each variant's card: scara_gym.envs.variants)."""
+ENV_KWARGS = {**ENV_VERSIONS, **ENV_VARIANTS}
+"""Every registered id -> the constructor arguments it registers (the vector env gets them too)."""
+ENV_IDS = tuple(ENV_KWARGS)
 """Every environment id this package registers."""
-for _env_id, _kwargs in ENV_VERSIONS.items():
+_ENTRY_POINTS = {
+    "Scara-C11-RandomPhysics-v0": "scara_gym.envs.variants:ScaraRandomPhysicsEnv",
+    "Scara-C11-RandomWall-v0": "scara_gym.envs.variants:ScaraRandomWallEnv",
+}
+for _env_id, _kwargs in ENV_KWARGS.items():
     if _env_id not in registry:
         # 300 steps of the default 0.01 s control step: the 3 s time limit
-        register(id=_env_id, entry_point="scara_gym.envs:ScaraEnv", max_episode_steps=300,
-                 vector_entry_point="scara_gym.envs.vector:ScaraVectorEnv", kwargs=dict(_kwargs))
+        register(id=_env_id, entry_point=_ENTRY_POINTS.get(_env_id, "scara_gym.envs:ScaraEnv"),
+                 max_episode_steps=300, vector_entry_point="scara_gym.envs.vector:ScaraVectorEnv",
+                 kwargs=dict(_kwargs))
 
 __all__ = [
-    "ENV_ID", "ENV_IDS", "ENV_VERSIONS", "LATEST_ENV_ID", "__version__",
+    "ENV_ID", "ENV_IDS", "ENV_KWARGS", "ENV_VARIANTS", "ENV_VERSIONS", "LATEST_ENV_ID", "__version__",
     "ArmParams", "AxisParams", "DEFAULT_PARAMS", "Event", "ObstacleParams", "ScaraParams",
     "SimulationError", "Simulator", "TaskParams", "Trajectory", "compare_forms", "obstacle_avoidance",
     "point_to_point",

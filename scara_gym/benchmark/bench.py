@@ -92,7 +92,7 @@ def bench_single(steps: int, rounds: int = 5) -> list[tuple[str, float]]:
     import scara_gym
 
     candidates = [(f"{env_id}, {mode}", env_id, {"control_mode": mode})
-                  for env_id in scara_gym.ENV_IDS for mode in ("pd", "voltage")]
+                  for env_id in scara_gym.ENV_VERSIONS for mode in ("pd", "voltage")]
     candidates += [("Pendulum-v1", "Pendulum-v1", {}), ("CartPole-v1", "CartPole-v1", {})]
     try:
         import mujoco  # noqa: F401
@@ -131,7 +131,7 @@ def bench_vector(sizes, steps: int, modes=("voltage", "pd"), env_ids=None) -> li
     for n in sizes:
         cartpole = _vector_steps_per_second(
             gym.make_vec("CartPole-v1", num_envs=n, vectorization_mode="vector_entry_point"), steps)
-        for env_id in env_ids or scara_gym.ENV_IDS:
+        for env_id in env_ids or scara_gym.ENV_VERSIONS:
             for mode in modes:
                 with warnings.catch_warnings():
                     warnings.simplefilter("ignore", DeprecationWarning)  # v0 is out of date

@@ -15,7 +15,8 @@ import pytest
 from gymnasium.utils.env_checker import check_env
 
 import scara_gym  # noqa: F401  (registers the environment)
-from scara_gym.envs import ScaraEnv
+from scara_gym.envs import ParameterRanges, ScaraEnv
+from scara_gym.envs.variants import VARIANT_CLASSES
 from scara_gym.benchmark.tasks import sample_point_to_point
 from scara_gym.model.simulator import SimulationError, Simulator, start_state
 
@@ -347,9 +348,10 @@ def _table(doc: str, header: str) -> list[list[str]]:
     return rows
 
 
-def test_the_card_matches_the_spaces_and_arguments():
-    doc = inspect.getdoc(ScaraEnv)
-    env = ScaraEnv()
+@pytest.mark.parametrize("cls", [ScaraEnv, *VARIANT_CLASSES.values()], ids=lambda c: c.__name__)
+def test_the_card_matches_the_spaces_and_arguments(cls):
+    doc = inspect.getdoc(cls)
+    env = cls()
     rows = _table(doc, "| index | name | unit | low | high |")
     assert [int(r[0]) for r in rows] == list(range(env.observation_space.shape[0]))
     assert [r[1] for r in rows] == list(env.observation_names)
@@ -370,7 +372,7 @@ def test_the_card_matches_the_spaces_and_arguments():
 
     arguments = doc[doc.index("## Arguments"):doc.index("## Version history")]
     documented = re.findall(r"^- (\w+) \(", arguments, flags=re.M)
-    signature = inspect.signature(ScaraEnv.__init__)
+    signature = inspect.signature(cls.__init__)
     assert sorted(documented) == sorted(p for p in signature.parameters if p != "self")
     for name, parameter in signature.parameters.items():
         if name == "self":
@@ -390,19 +392,29 @@ def test_an_integration_that_cannot_go_on_names_its_cause():
 
 @pytest.mark.parametrize("env_id", scara_gym.ENV_IDS)
 def test_each_registered_id_fixes_its_integration_arguments(env_id):
-    fixed = scara_gym.ENV_VERSIONS[env_id]
+    fixed = dict(scara_gym.ENV_KWARGS[env_id])
+    randomized = fixed.pop("randomize_params", False)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", DeprecationWarning)  # v0 is out of date, on purpose
-        task = gym.make(env_id).unwrapped.task
+        env = gym.make(env_id).unwrapped
         vector_task = gym.make_vec(env_id, num_envs=2, vectorization_mode="vector_entry_point").task
-    for task_ in (task, vector_task):
+    for task_ in (env.task, vector_task):
         assert {name: getattr(task_, name) for name in fixed} == fixed
+        expected = ParameterRanges.from_argument(randomized, task_.params)
+        assert task_.randomization == expected
+    if env_id in scara_gym.ENV_VARIANTS:  # the class of its card, whose defaults are the registered ones
+        assert type(env) is VARIANT_CLASSES[env_id]
+        assert type(VARIANT_CLASSES[env_id]()).__name__ == type(env).__name__
+        assert VARIANT_CLASSES[env_id]().task.randomization == env.task.randomization
     assert gym.spec(env_id).max_episode_steps == 300
     version = env_id.rsplit("-", 1)[1]
-    history = ScaraEnv.__doc__[ScaraEnv.__doc__.index("## Version history"):]
-    line = re.search(rf"^    - {version}: (.*?)(?=^    - |\Z)", history, flags=re.M | re.S).group(1)
+    card = inspect.getdoc(type(env))
+    history = card[card.index("## Version history"):]
+    line = re.search(rf"^- {version}: (.*?)(?=^- |\Z)", history, flags=re.M | re.S).group(1)
     stated = dict(re.findall(r"``(\w+)=([^`]+)``", line))
-    assert {name: ast.literal_eval(stated[name]) for name in fixed} == fixed  # the card's line says what the id fixes
+    # the card's line says what the id fixes
+    assert {name: ast.literal_eval(stated[name]) for name in scara_gym.ENV_KWARGS[env_id]} == \
+        scara_gym.ENV_KWARGS[env_id]
 
 
 def test_v1_is_deterministic_for_a_seed_and_passes_check_env():

@@ -216,3 +216,34 @@ def test_without_randomization_nothing_is_drawn():
         expected = draw_target(rng, env.task.default_start, env.params, obstacle=True)
         np.testing.assert_array_equal(info["target"], expected)
         assert "params" not in info
+
+
+@pytest.mark.parametrize("env_id", sorted(scara_gym.ENV_VARIANTS))
+def test_each_variant_passes_the_checkers_and_is_deterministic_for_a_seed(env_id):
+    from scara_gym.envs.variants import VARIANT_CLASSES
+
+    assert set(VARIANT_CLASSES) == set(scara_gym.ENV_VARIANTS)
+    env = gym.make(env_id)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        check_env(env.unwrapped, skip_render_check=True)
+        pytest.importorskip("stable_baselines3.common.env_checker").check_env(VARIANT_CLASSES[env_id](), warn=True)
+    assert [str(w.message) for w in caught] == []
+
+    def rollout(seed):
+        env = gym.make(env_id, randomize_target=True)
+        rng = np.random.default_rng(seed)
+        out = []
+        for episode in range(3):
+            obs, info = env.reset(seed=seed if episode == 0 else None)
+            out += [obs, np.array(list(info["params"].values()))]
+            for _ in range(40):
+                obs, reward, terminated, truncated, _ = env.step(rng.uniform(-1, 1, 3).astype(np.float32))
+                out += [obs, np.array([reward])]
+                if terminated or truncated:
+                    break
+        return out
+
+    first, second, other = rollout(7), rollout(7), rollout(8)
+    assert all(np.array_equal(a, b) for a, b in zip(first, second, strict=True))
+    assert not np.array_equal(first[1], other[1])  # another seed, other parameters

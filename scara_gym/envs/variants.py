@@ -1,0 +1,97 @@
+"""Registered variants of the C11 task: ScaraEnv with other fixed arguments, each with its card.
+
+A variant is the same environment class with other defaults (the arguments its id
+registers, ``scara_gym.ENV_VARIANTS``), so everything ScaraEnv does it does, and every
+argument can still be given. Its card is ScaraEnv's with its own title and summary, its
+defaults in the argument list, and its own version history.
+"""
+
+from __future__ import annotations
+
+import inspect
+import re
+
+from scara_gym import ENV_VARIANTS
+from scara_gym.envs.scara_env import ScaraEnv
+from scara_gym.envs.task import ScaraTask
+
+
+def _observation_rows(body: str, defaults: dict) -> str:
+    """The observation table with the variant's bounds (randomized ranges widen some)."""
+    task = ScaraTask(**{k: v for k, v in defaults.items()})
+    low, high = task.obs_low, task.obs_high
+
+    def row(match):
+        i = int(match.group(1))
+        return f"| {i} | {match.group(2)} | {match.group(3)} | {float(low[i]):g} | {float(high[i]):g} |"
+
+    return re.sub(r"^\| (\d+) \| (\w+) \| ([^|]+?) \| [^|]+ \| [^|]+ \|$", row, body, flags=re.M)
+
+
+def _card(summary: str, defaults: dict, history: str) -> str:
+    base = inspect.getdoc(ScaraEnv)
+    body = _observation_rows(base[base.index("## Action space"):base.index("## Version history")], defaults)
+    for name, value in defaults.items():
+        text = repr(value).replace("'", '"')
+        body, found = re.subn(rf"^(- {name} \()[^)]*(\))", lambda m: m.group(1) + text + m.group(2), body,
+                              flags=re.M)
+        assert found == 1, name
+    return f"{inspect.cleandoc(summary)}\n\n{body}## Version history\n\n{inspect.cleandoc(history)}\n"
+
+
+def _signature(defaults: dict) -> inspect.Signature:
+    signature = inspect.signature(ScaraEnv.__init__)
+    return signature.replace(parameters=[
+        p.replace(default=defaults[p.name]) if p.name in defaults else p for p in signature.parameters.values()])
+
+
+class _Variant(ScaraEnv):
+    env_id: str
+
+    def __init_subclass__(cls, summary: str = "", history: str = "", **kwargs) -> None:
+        super().__init_subclass__(**kwargs)
+        cls.defaults = dict(ENV_VARIANTS[cls.env_id])
+        cls.__doc__ = _card(summary, cls.defaults, history)
+
+        def __init__(self, **kwargs) -> None:
+            ScaraEnv.__init__(self, **{**cls.defaults, **kwargs})
+
+        __init__.__signature__ = _signature(cls.defaults)
+        __init__.__doc__ = f"ScaraEnv's arguments, with the defaults of {cls.env_id}."
+        cls.__init__ = __init__
+
+
+class ScaraRandomPhysicsEnv(_Variant, summary="""
+    Scara-C11-RandomPhysics-v0: the C11 task with the robot's physics drawn per episode.
+
+    The point-to-point move of Scara-C11-v1 (same wall, target, spaces, reward and
+    integration) with the load mass, the link masses and each motor's resistance, torque
+    constant and current limit drawn uniformly per reset from the "physics" preset of
+    ``scara_gym.envs.randomization`` (see the starting state below), the drawn values in the
+    reset info. A policy must reach the target fast on robots it has not seen: the setting
+    of domain randomization for sim-to-real transfer.
+    """, history="""
+    - v0: first release: ``randomize_params="physics"`` on Scara-C11-v1's physics,
+      ``exact_switches=True``, ``rtol=1e-6``, ``atol=1e-8``.
+    """):
+    env_id = "Scara-C11-RandomPhysics-v0"
+
+
+class ScaraRandomWallEnv(_Variant, summary="""
+    Scara-C11-RandomWall-v0: the C11 task with the wall's position and height drawn per episode.
+
+    The point-to-point move of Scara-C11-v1 (same robot, target, spaces, reward and
+    integration) with the wall's plane x_obs drawn from 0.35 +- 0.04 m and its height h_obs
+    from 0.15 +- 0.03 m per reset (the "wall" preset of ``scara_gym.envs.randomization``),
+    the drawn values in the reset info and the wall features of the observation measured
+    from the episode's wall. With the C11 target the task stays solvable: the target tip
+    lies beyond the critical band and the target height above the wall for every draw.
+    """, history="""
+    - v0: first release: ``randomize_params="wall"`` on Scara-C11-v1's physics,
+      ``exact_switches=True``, ``rtol=1e-6``, ``atol=1e-8``.
+    """):
+    env_id = "Scara-C11-RandomWall-v0"
+
+
+VARIANT_CLASSES = {cls.env_id: cls for cls in (ScaraRandomPhysicsEnv, ScaraRandomWallEnv)}
+"""Registered variant id -> its class (a test checks every id of ENV_VARIANTS has one)."""
