@@ -29,7 +29,6 @@ No gymnasium import here: the task object (:mod:`scara_gym.envs.task`) uses it.
 from __future__ import annotations
 
 import dataclasses
-import math
 from collections.abc import Mapping
 from dataclasses import dataclass
 
@@ -75,14 +74,18 @@ def leaf_value(params: ScaraParams, path: str) -> float:
     return float(node)
 
 
-def check_path(name: str, path) -> str:
-    """A dotted path of a parameter ranges may draw and reset options may set."""
+def check_path(name: str, path, nominal: ScaraParams) -> str:
+    """A dotted path to a scalar of ``nominal`` that ranges may draw and reset options may set."""
     if not isinstance(path, str):
         raise TypeError(f"{name}: parameter paths are dotted strings such as 'arm.load_mass', got {path!r}")
     if path.split(".")[0] not in _RANDOMIZABLE_ROOTS or path in _FIXED_LEAVES:
         raise ValueError(f"{name}: {path!r} cannot vary per episode; allowed: scalar parameters under "
                          f"{', '.join(r + '.' for r in _RANDOMIZABLE_ROOTS)} except {', '.join(_FIXED_LEAVES)} "
                          f"(starts and targets are reset options of their own)")
+    try:
+        leaf_value(nominal, path)
+    except KeyError as error:
+        raise ValueError(f"{name}: {error.args[0]}") from None
     return path
 
 
@@ -113,11 +116,7 @@ class ParameterRanges:
         ranges = {}
         for path, bounds in value.items():
             name = f"randomize_params[{path!r}]"
-            check_path("randomize_params", path)
-            try:
-                leaf_value(nominal, path)
-            except KeyError as error:
-                raise ValueError(f"randomize_params: {error.args[0]}") from None
+            check_path("randomize_params", path, nominal)
             if not isinstance(bounds, (tuple, list, np.ndarray)) or len(bounds) != 2:
                 raise TypeError(f"{name} must be (low, high), got {bounds!r}")
             low, high = checks.real(f"{name}[0]", bounds[0]), checks.real(f"{name}[1]", bounds[1])
@@ -162,11 +161,7 @@ def check_overrides(name: str, overrides, nominal: ScaraParams) -> dict[str, flo
                         f"got {overrides!r}")
     result = {}
     for path, value in overrides.items():
-        check_path(name, path)
-        try:
-            leaf_value(nominal, path)
-        except KeyError as error:
-            raise ValueError(f"{name}: {error.args[0]}") from None
+        check_path(name, path, nominal)
         result[path] = checks.real(f"{name}[{path!r}]", value)
     return result
 
@@ -184,6 +179,4 @@ def within_bounds(params: ScaraParams, bound_params: ScaraParams) -> str | None:
         value, bound = getattr(params.obstacle, field), getattr(bound_params.obstacle, field)
         if abs(value) > abs(bound) + 1e-12 * max(1.0, abs(bound)):
             return f"|obstacle.{field}| = {abs(value):g} m exceeds the observation bound {abs(bound):g} m"
-    if not math.isfinite(params.arm.reach):  # pragma: no cover - the tree's ranges forbid it
-        return "the reach is not finite"
     return None

@@ -18,7 +18,7 @@ from scara_gym.envs.task import ScaraTask
 
 def _observation_rows(body: str, defaults: dict) -> str:
     """The observation table with the variant's bounds (randomized ranges widen some)."""
-    task = ScaraTask(**{k: v for k, v in defaults.items()})
+    task = ScaraTask(**defaults)
     low, high = task.obs_low, task.obs_high
 
     def row(match):
