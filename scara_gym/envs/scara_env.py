@@ -43,7 +43,8 @@ class ScaraEnv(gym.Env):
     ``"voltage"`` mode the action range always spans the voltage permitted at that
     instant, and the PD law saturates at the widened bound there. The set-point and the
     voltages are held over the control step; the limit switches at the located instant
-    the tip becomes critical.
+    the tip becomes critical. With ``action_delay`` or ``action_rate_limit`` (off by
+    default) the applied action lags the given one, see the arguments.
 
     ## Observation space
 
@@ -75,7 +76,9 @@ class ScaraEnv(gym.Env):
     target_error = q^ - q; wall_distance = x_tip - x_obs (signed); height_margin =
     q3 - h_obs; critical = 1 while the widened voltage applies; time_left =
     max(0, 1 - t / time_limit). The bounds of the currents, tip, wall distance and
-    height margin follow the parameters (the table shows the defaults).
+    height margin follow the parameters (the table shows the defaults). With
+    ``observation_noise`` (off by default) Gaussian noise is added to the returned
+    observation, which is then clipped to these bounds.
 
     ## Reward
 
@@ -126,7 +129,9 @@ class ScaraEnv(gym.Env):
     critical, time (s), energy (J, episode total),
     current_limited (3 bools: held at its limit at the end of the step), voltage (V, at
     the end of the step), clipped_actions (components clipped this step), target; and
-    reach_time (s, the located instant) on the step that reaches the target. The reset
+    reach_time (s, the located instant) on the step that reaches the target;
+    applied_action (the action the robot applied, in [-1, 1]) with ``action_delay`` or
+    ``action_rate_limit``. The reset
     info holds target and start, and params (dotted path -> value) where parameters were
     drawn or set for the episode.
 
@@ -157,6 +162,18 @@ class ScaraEnv(gym.Env):
     - randomize_params (False): False, True ("physics"), "physics", "wall", "all" or a
       dict {dotted path: (low, high)}: parameters drawn per episode, see the starting
       state; the observation bounds then hold the ranges' ends.
+    - observation_noise (None): sim-to-real: {field: standard deviation} in the field's
+      unit, e.g. {"q": 1e-3, "rate": 0.05, "current": 0.02}; fields of the observation
+      ("q", "rate", "current", "target_error", "tip_x", ...: a vector field's std applies
+      to each entry) or entries by the table's names ("q3"). Zero-mean Gaussian noise per
+      step from the episode's generator, added to the returned observation only (the
+      physics, reward and episode end see the true state).
+    - action_delay (0): sim-to-real: dead time in control steps, in [0, 100]: the action
+      given at step t is applied at step t + k; the first k steps apply the neutral
+      action (the start as set-point in "pd" mode, 0 V in "voltage" mode).
+    - action_rate_limit (None): sim-to-real: the applied action moves towards the
+      (delayed) given one by at most this many action units per second (the action spans
+      [-1, 1]; e.g. 20 allows 0.2 per 0.01 s step), starting from the neutral action.
     - render_mode (None): "rgb_array" (headless) or "human" (needs a display).
 
     ## Version history
@@ -180,10 +197,13 @@ class ScaraEnv(gym.Env):
                  reward_weights: RewardWeights | dict | None = None, control_dt: float = 0.01,
                  time_limit: float = 3.0, params: ScaraParams | dict | None = None,
                  rtol: float = 1e-5, atol: float = 1e-6, exact_switches: bool = False,
-                 randomize_params=False, render_mode: str | None = None) -> None:
+                 randomize_params=False, observation_noise: dict | None = None, action_delay: int = 0,
+                 action_rate_limit: float | None = None, render_mode: str | None = None) -> None:
         self.task = ScaraTask(control_mode, obstacle, collision, target, start, randomize_target,
                               reward_weights, control_dt, time_limit, params, rtol, atol,
-                              exact_switches, num_robots=1, randomize_params=randomize_params)
+                              exact_switches, num_robots=1, randomize_params=randomize_params,
+                              observation_noise=observation_noise, action_delay=action_delay,
+                              action_rate_limit=action_rate_limit)
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
             raise ValueError(f"render_mode must be one of {self.metadata['render_modes']} or None, "
                              f"got {render_mode!r}")
@@ -194,7 +214,6 @@ class ScaraEnv(gym.Env):
         self.observation_space = spaces.Box(task.obs_low, task.obs_high, dtype=np.float32)
         self._robot = task.robots[0]
         self._outcome = task.outcomes[0]
-        self._obs = task.obs[0]
         self._reward = task.outcomes["reward"]
         self._needs_reset = True
         self._renderer = None
@@ -252,7 +271,7 @@ class ScaraEnv(gym.Env):
         self._trace = [self._tip()]
         if self.render_mode == "human":
             self.render()
-        return self._obs.copy(), info
+        return self.task.observation(0, self.np_random), info
 
     def step(self, action):
         if self._needs_reset:
@@ -269,7 +288,7 @@ class ScaraEnv(gym.Env):
             self._trace.append(self._tip())
         if self.render_mode == "human":
             self.render()
-        return self._obs.copy(), float(self._reward[0]), terminated, False, info
+        return self.task.observation(0, self.np_random), float(self._reward[0]), terminated, False, info
 
     # -- helpers -----------------------------------------------------------------------
     def _tip(self) -> tuple[float, float]:
@@ -300,7 +319,7 @@ class ScaraEnv(gym.Env):
     def __getstate__(self):
         state = self.__dict__.copy()
         state["_renderer"] = None
-        for view in ("_robot", "_outcome", "_obs", "_reward"):  # views into the task's arrays: re-made on load
+        for view in ("_robot", "_outcome", "_reward"):  # views into the task's arrays: re-made on load
             del state[view]
         return state
 
@@ -308,5 +327,4 @@ class ScaraEnv(gym.Env):
         self.__dict__.update(state)
         self._robot = self.task.robots[0]
         self._outcome = self.task.outcomes[0]
-        self._obs = self.task.obs[0]
         self._reward = self.task.outcomes["reward"]

@@ -30,6 +30,7 @@ from scara_gym.model import records as R
 from scara_gym.model.dynamics import tip_position
 from scara_gym.model import checks
 from scara_gym.envs.randomization import ParameterRanges, check_overrides, within_bounds
+from scara_gym.envs.sim_to_real import Actuator, SimToReal, add_noise
 from scara_gym.model.params import DEFAULT_PARAMS, ScaraParams, resolve_params
 from scara_gym.model.simulator import CONTROLS, SimulationError, check_state, check_tolerance, failure_message
 
@@ -164,7 +165,8 @@ class ScaraTask:
                  reward_weights: RewardWeights | dict | None = None, control_dt: float = 0.01,
                  time_limit: float = 3.0, params: ScaraParams | dict | None = None,
                  rtol: float = 1e-5, atol: float = 1e-6, exact_switches: bool = False,
-                 num_robots: int = 1, randomize_params=False) -> None:
+                 num_robots: int = 1, randomize_params=False, observation_noise: dict | None = None,
+                 action_delay: int = 0, action_rate_limit: float | None = None) -> None:
         self.control_mode = checks.choice("control_mode", control_mode, CONTROL_MODES)
         self.obstacle = checks.flag("obstacle", obstacle)
         self.collision_mode = checks.choice("collision", collision, COLLISION_MODES)
@@ -193,6 +195,10 @@ class ScaraTask:
         self.setpoint_half = SETPOINT_HALF
         self.obs_low, self.obs_high = self._observation_bounds()
         self.num_robots = n = num_robots
+        self.sim_to_real = SimToReal.from_arguments(observation_noise, action_delay, action_rate_limit,
+                                                    self.control_dt, OBSERVATION_LAYOUT, OBSERVATION_NAMES)
+        self.actuator = Actuator(self.sim_to_real, n) if self.sim_to_real.shapes_actions else None
+        """the delay line and rate limit between the agent's and the applied actions, where any"""
 
         # the compiled step's records: shared configuration and constants, per-robot state
         self.config = np.zeros(1, dtype=R.CONFIG)
@@ -316,22 +322,38 @@ class ScaraTask:
         robot["x"] = 0.0
         robot["x"][R.Q:R.Q + 3] = start
         robot["command"] = target if self.control_mode == "pd" else 0.0
+        if self.actuator is not None:  # before the episode the robot rests: the neutral action
+            self.actuator.reset(i, self.setpoint_to_action(start) if self.control_mode == "pd" else np.zeros(3))
         start_robot(i, self.robots, self.robot_params, self.config, self.task, self.outcomes, self.obs)
 
     # -- steps ---------------------------------------------------------------------------
     def step_robot(self, i: int, action: np.ndarray) -> None:
         """One control step of robot i (action: 3 float64, C-contiguous); raises on bad input
         (nothing changed) or a failed integration."""
+        clipped = None
+        if self.actuator is not None:
+            action = check_actions(action, (3,))  # finite before it enters the delay line
+            clipped = int(np.count_nonzero(np.abs(action) > 1.0))
+            action = self.actuator.apply(np.array([i]), np.clip(action, -1.0, 1.0)[None])[0]
         status = step_robot(i, action, self.robots, self.robot_params, self.config, self.task, self.log,
                             self.outcomes, self.obs)
         if status < 0:
             self._raise_for(status, i, action)
+        if clipped is not None:  # the compiled step saw the shaped action: count the given one's
+            self.outcomes["clipped"][i] = clipped
 
     def step_robots(self, active: np.ndarray, actions: np.ndarray) -> None:
         """One control step of every active robot in parallel (actions: checked (N, 3) float64)."""
+        if self.actuator is not None:
+            rows = np.flatnonzero(active)
+            clipped = np.count_nonzero(np.abs(actions[rows]) > 1.0, axis=1)
+            actions = actions.copy()
+            actions[rows] = self.actuator.apply(rows, np.clip(actions[rows], -1.0, 1.0))
         with PARALLEL_LOCK:
             step_robots(active, actions, self.robots, self.robot_params, self.config, self.task, self.log,
                         self.outcomes, self.obs)
+        if self.actuator is not None:
+            self.outcomes["clipped"][rows] = clipped
         failed = active & (self.outcomes["status"] < 0)
         if failed.any():
             i = int(np.flatnonzero(failed)[0])
@@ -342,6 +364,19 @@ class ScaraTask:
             check_actions(action, (3,))  # raises naming it
         where = f"sub-environment {i}: " if self.num_robots > 1 else ""
         raise SimulationError(where + failure_message(status, self.robots[i], self.config[0], self.params))
+
+    def observation(self, i: int, rng: np.random.Generator) -> np.ndarray:
+        """Robot i's observation as the agent gets it (a copy): with observation noise drawn
+        from ``rng`` (the episode's generator) where configured."""
+        if not self.sim_to_real.noisy:
+            return self.obs[i].copy()
+        return add_noise(self.obs[i], self.sim_to_real.noise_std, rng, self.obs_low, self.obs_high)
+
+    def observations(self, rngs: list[np.random.Generator]) -> np.ndarray:
+        """Every robot's observation as the agents get it (robot i's noise from rngs[i])."""
+        if not self.sim_to_real.noisy:
+            return self.obs.copy()
+        return np.stack([self.observation(i, rng) for i, rng in enumerate(rngs)])
 
     def terminated(self, outcome) -> bool | np.ndarray:
         """Success, or a collision where collisions terminate (one outcome or an array of them)."""
@@ -369,6 +404,8 @@ class ScaraTask:
         }
         info["reach_time"] = np.where(reached, outcomes["reach_time"], np.nan)
         info["_reach_time"] = reached
+        if self.actuator is not None:
+            info["applied_action"] = self.actuator.applied
         info["reward_terms"] = {term: value.copy() for term, value in info["reward_terms"].items()}
         return {key: (value.copy() if isinstance(value, np.ndarray) else value) for key, value in info.items()}
 
@@ -396,4 +433,6 @@ class ScaraTask:
         }
         if reached:
             info["reach_time"] = reach_time
+        if self.actuator is not None:
+            info["applied_action"] = self.actuator.applied[i].copy()
         return info

@@ -37,7 +37,9 @@ class ScaraVectorEnv(VectorEnv):
     reward_terms (a dict of arrays) and reach_time (masked by ``_reach_time``). With
     ``randomize_params`` every robot draws its own parameters per episode, as the single
     environment seeded ``seed + i`` does; the reset info's ``params`` holds one array per
-    drawn path over the robots.
+    drawn path over the robots. The sim-to-real options (observation_noise, action_delay,
+    action_rate_limit) act per robot as in the single environment: robot i's noise comes from
+    its own generator, and ``info["applied_action"]`` holds every robot's applied action.
     """
 
     metadata = {"autoreset_mode": AutoresetMode.NEXT_STEP, "render_modes": []}
@@ -104,7 +106,7 @@ class ScaraVectorEnv(VectorEnv):
         if varied:  # the drawn or overridden parameters, one array per path over the robots
             info["params"] = {path: np.array([plan.varied.get(path, np.nan) for plan in plans])
                               for path in varied}
-        return self.task.obs.copy(), info
+        return self.task.observations(self._rngs), info
 
     def _seeds(self, seed) -> list[int | None]:
         text = f"seed must be None, an integer >= 0 or a list of {self.num_envs} such seeds or None"
@@ -133,7 +135,7 @@ class ScaraVectorEnv(VectorEnv):
         reward = outcomes["reward"].copy()
         info = task.info()
         done = terminated | truncated
-        obs = task.obs.copy()
+        obs = task.observations(self._rngs)
         if self.autoreset_mode == AutoresetMode.SAME_STEP and done.any():
             info["final_obs"] = np.where(done[:, None], obs, 0.0).astype(np.float32)
             info["_final_obs"] = done
@@ -141,6 +143,6 @@ class ScaraVectorEnv(VectorEnv):
             info["_final_info"] = done
             for i in np.flatnonzero(done):
                 task.reset_robot(i, self._rngs[i])
-            obs = task.obs.copy()
+                obs[i] = task.observation(i, self._rngs[i])
         self._prev_done = done
         return obs, reward, terminated, truncated, info

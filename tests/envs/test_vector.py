@@ -20,6 +20,8 @@ def make_vec(n, **kwargs):
     dict(control_mode="voltage", collision="penalty", randomize_target=True),
     dict(control_mode="pd", randomize_target=True),
     dict(control_mode="pd", obstacle=False),
+    dict(control_mode="pd", randomize_target=True, observation_noise={"q": 1e-3, "current": 0.05},
+         action_delay=2, action_rate_limit=30.0),
 ])
 def test_each_sub_environment_is_the_single_environment(kwargs):
     n, seed, horizon = 4, 21, 320
