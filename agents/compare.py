@@ -306,6 +306,12 @@ def markdown(entries: list[dict]) -> str:
         met = {True: "yes", False: "**no**", None: "-"}[c["met"]]
         lines.append(f"| {c['target']} | {met} | {c['reached']} |")
     lines.append("")
+    return "\n".join(lines) + "\n" + condition_tables(entries)
+
+
+def condition_tables(entries: list[dict]) -> str:
+    """One table per condition (and every seed of the learned entries): the comparison's format."""
+    lines = []
     for name in dict.fromkeys(e["condition"] for e in entries):
         lines += [f"#### {name}: {CONDITIONS[name].description}", "",
                   "| policy | kind | mode | seeds | episodes | success | collisions | time to target, IQM [95 % CI] (s) "

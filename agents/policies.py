@@ -116,16 +116,18 @@ def run_episode(env, policy, seed: int | None = None, options: dict | None = Non
     obs, _ = env.reset(seed=seed, options=options)
     policy.reset()
     unwrapped = env.unwrapped
+    # measured on the true flat observation: the same for noisy and goal-conditioned envs
+    state = unwrapped.task.obs[0]
     total, steps, peak = 0.0, 0, np.zeros(3)
-    trace = [(0.0, *_trace_row(obs))] if record else None
+    trace = [(0.0, *_trace_row(state))] if record else None
     info = {}
     while True:
         obs, reward, terminated, truncated, info = env.step(policy(obs))
         total += reward
         steps += 1
-        peak = np.maximum(peak, np.abs(obs[CURRENTS]))
+        peak = np.maximum(peak, np.abs(state[CURRENTS]))
         if record:
-            trace.append((info["time"], *_trace_row(obs)))
+            trace.append((info["time"], *_trace_row(state)))
         if terminated or truncated:
             break
     summary = {

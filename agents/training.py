@@ -31,7 +31,7 @@ from pathlib import Path
 import numpy as np
 import yaml
 
-from scara_gym import ENV_KWARGS, LATEST_ENV_ID
+from scara_gym import ENV_KWARGS, GOAL_ENV_IDS, LATEST_ENV_ID
 
 HYPERPARAMS = Path(__file__).with_name("hyperparams")
 SHIPPED_MODELS = Path(__file__).with_name("models")
@@ -87,12 +87,15 @@ def make_envs(env_id: str, env_kwargs: dict, hyper: dict, seed: int, normalizer:
     from agents.ppo import ResidualVecEnv
     from scara_gym.integrations.sb3 import SB3VecEnv
 
-    train_env = SB3VecEnv(num_envs=hyper["n_envs"], num_threads=hyper.get("env_threads", 1),
-                          **{**ENV_KWARGS[env_id], **env_kwargs})
+    if env_id in GOAL_ENV_IDS:  # HER asks the env for compute_reward: gym envs in SB3's DummyVecEnv
+        train_env = DummyVecEnv([lambda: Monitor(gym.make(env_id, **env_kwargs))] * hyper["n_envs"])
+    else:
+        train_env = SB3VecEnv(num_envs=hyper["n_envs"], num_threads=hyper.get("env_threads", 1),
+                              **{**ENV_KWARGS[env_id], **env_kwargs})
     train_env.seed(seed)
     eval_env = DummyVecEnv([lambda: Monitor(gym.make(env_id, **env_kwargs))])
     eval_env.seed(10_000 + seed)
-    mapping = _residual_mapping(train_env.venv.task, hyper)
+    mapping = _residual_mapping(train_env.venv.task, hyper) if env_id not in GOAL_ENV_IDS else None
     if mapping is not None:
         train_env, eval_env = ResidualVecEnv(train_env, mapping), ResidualVecEnv(eval_env, mapping)
     norm = _normalize_kwargs(hyper)
@@ -103,7 +106,7 @@ def make_envs(env_id: str, env_kwargs: dict, hyper: dict, seed: int, normalizer:
         else:
             train_env = VecNormalize(train_env, gamma=gamma, **norm)
         eval_env = VecNormalize(eval_env, norm_obs=norm.get("norm_obs", True), norm_reward=False,
-                                training=False, gamma=gamma)
+                                training=False, gamma=gamma, norm_obs_keys=norm.get("norm_obs_keys"))
     return train_env, eval_env
 
 
@@ -117,6 +120,10 @@ def algorithm_kwargs(algo: str, hyper: dict, n_actions: int) -> dict:
         from stable_baselines3.common.noise import NormalActionNoise
 
         kwargs["action_noise"] = NormalActionNoise(np.zeros(n_actions), hyper["noise_std"] * np.ones(n_actions))
+    if kwargs.get("replay_buffer_class") == "HerReplayBuffer":  # hindsight relabeling for the goal envs
+        from stable_baselines3 import HerReplayBuffer
+
+        kwargs["replay_buffer_class"] = HerReplayBuffer
     return {"policy_kwargs": policy_kwargs, **kwargs}
 
 
@@ -214,7 +221,10 @@ def train(algo: str, out: str | Path, env_id: str = LATEST_ENV_ID, control_mode:
         if (snapshot / "replay_buffer.pkl").exists():
             model.load_replay_buffer(snapshot / "replay_buffer.pkl")
     else:
-        model = Algorithm("MlpPolicy", train_env, seed=seed, device="cpu", verbose=0, tensorboard_log=str(out / "tb"),
+        from gymnasium import spaces
+
+        policy = "MultiInputPolicy" if isinstance(train_env.observation_space, spaces.Dict) else "MlpPolicy"
+        model = Algorithm(policy, train_env, seed=seed, device="cpu", verbose=0, tensorboard_log=str(out / "tb"),
                           **algorithm_kwargs(algo, hyper, train_env.action_space.shape[0]))
 
     per_env = lambda steps: max(1, int(steps) // hyper["n_envs"])  # noqa: E731  callbacks count vector steps
@@ -267,7 +277,10 @@ class SB3Policy:
             raise ValueError(f"{model_dir} was trained in {trained_mode!r} mode, "
                              f"the environment is in {self.env.control_mode!r} mode")
         algo = config.get("algo", "ppo")
-        self.model = algorithm_class(algo).load(model_dir / "model.zip", device="cpu")
+        # acting needs no replay buffer: a 1-entry plain one (a HER buffer would need the env)
+        replay = {"replay_buffer_class": None, "replay_buffer_kwargs": {}, "buffer_size": 1} \
+            if algo in ("sac", "td3") else None
+        self.model = algorithm_class(algo).load(model_dir / "model.zip", device="cpu", custom_objects=replay)
         self.normalizer = None
         if (model_dir / "vecnormalize.pkl").exists():
             with open(model_dir / "vecnormalize.pkl", "rb") as f:
@@ -282,6 +295,9 @@ class SB3Policy:
         pass
 
     def __call__(self, obs: np.ndarray) -> np.ndarray:
+        if isinstance(obs, dict):  # a goal env's observation: the normalizer knows its keys
+            x = obs if self.normalizer is None else self.normalizer.normalize_obs(obs)
+            return self.model.predict(x, deterministic=True)[0]
         x = np.asarray(obs, dtype=np.float64)
         if self.normalizer is not None:
             n = self.normalizer

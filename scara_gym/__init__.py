@@ -31,8 +31,12 @@ ENV_VARIANTS = {
     # the C11 task with parameters drawn per episode (scara_gym.envs.randomization), on v1's physics
     "Scara-C11-RandomPhysics-v0": {**ENV_VERSIONS[LATEST_ENV_ID], "randomize_params": "physics"},
     "Scara-C11-RandomWall-v0": {**ENV_VERSIONS[LATEST_ENV_ID], "randomize_params": "wall"},
+    # the goal-conditioned task (Dict observations, compute_reward for HER), goals drawn per episode
+    "Scara-C11-Goal-v0": {**ENV_VERSIONS[LATEST_ENV_ID], "randomize_target": True},
 }
 """Registered variant id -> the arguments it fixes (each variant's card: scara_gym.envs.variants)."""
+GOAL_ENV_IDS = ("Scara-C11-Goal-v0",)
+"""The ids with the goal API (Dict observations, compute_reward): SB3 trains them with HER."""
 ENV_KWARGS = {**ENV_VERSIONS, **ENV_VARIANTS}
 """Every registered id -> the constructor arguments it registers (the vector env gets them too)."""
 ENV_IDS = tuple(ENV_KWARGS)
@@ -40,16 +44,19 @@ ENV_IDS = tuple(ENV_KWARGS)
 _ENTRY_POINTS = {
     "Scara-C11-RandomPhysics-v0": "scara_gym.envs.variants:ScaraRandomPhysicsEnv",
     "Scara-C11-RandomWall-v0": "scara_gym.envs.variants:ScaraRandomWallEnv",
+    "Scara-C11-Goal-v0": "scara_gym.envs.goal:ScaraGoalEnv",
 }
+_VECTOR_ENTRY_POINTS = {"Scara-C11-Goal-v0": "scara_gym.envs.goal:ScaraGoalVectorEnv"}
 for _env_id, _kwargs in ENV_KWARGS.items():
     if _env_id not in registry:
         # 300 steps of the default 0.01 s control step: the 3 s time limit
         register(id=_env_id, entry_point=_ENTRY_POINTS.get(_env_id, "scara_gym.envs:ScaraEnv"),
-                 max_episode_steps=300, vector_entry_point="scara_gym.envs.vector:ScaraVectorEnv",
+                 max_episode_steps=300,
+                 vector_entry_point=_VECTOR_ENTRY_POINTS.get(_env_id, "scara_gym.envs.vector:ScaraVectorEnv"),
                  kwargs=dict(_kwargs))
 
 __all__ = [
-    "ENV_ID", "ENV_IDS", "ENV_KWARGS", "ENV_VARIANTS", "ENV_VERSIONS", "LATEST_ENV_ID", "__version__",
+    "ENV_ID", "ENV_IDS", "ENV_KWARGS", "GOAL_ENV_IDS", "ENV_VARIANTS", "ENV_VERSIONS", "LATEST_ENV_ID", "__version__",
     "ArmParams", "AxisParams", "DEFAULT_PARAMS", "Event", "ObstacleParams", "ScaraParams",
     "SimulationError", "Simulator", "TaskParams", "Trajectory", "compare_forms", "obstacle_avoidance",
     "point_to_point",

@@ -93,5 +93,7 @@ class ScaraRandomWallEnv(_Variant, summary="""
     env_id = "Scara-C11-RandomWall-v0"
 
 
-VARIANT_CLASSES = {cls.env_id: cls for cls in (ScaraRandomPhysicsEnv, ScaraRandomWallEnv)}
+from scara_gym.envs.goal import ScaraGoalEnv  # noqa: E402  (its card is its own: a Dict observation)
+
+VARIANT_CLASSES = {cls.env_id: cls for cls in (ScaraRandomPhysicsEnv, ScaraRandomWallEnv, ScaraGoalEnv)}
 """Registered variant id -> its class (a test checks every id of ENV_VARIANTS has one)."""

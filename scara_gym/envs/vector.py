@@ -106,7 +106,7 @@ class ScaraVectorEnv(VectorEnv):
         if varied:  # the drawn or overridden parameters, one array per path over the robots
             info["params"] = {path: np.array([plan.varied.get(path, np.nan) for plan in plans])
                               for path in varied}
-        return self.task.observations(self._rngs), info
+        return self._agent_view(self.task.observations(self._rngs)), info
 
     def _seeds(self, seed) -> list[int | None]:
         text = f"seed must be None, an integer >= 0 or a list of {self.num_envs} such seeds or None"
@@ -134,10 +134,11 @@ class ScaraVectorEnv(VectorEnv):
         truncated = outcomes["episode_steps"] >= self.max_episode_steps
         reward = outcomes["reward"].copy()
         info = task.info()
+        reward, terminated, info = self._judge(reward, terminated, info, resetting)
         done = terminated | truncated
         obs = task.observations(self._rngs)
         if self.autoreset_mode == AutoresetMode.SAME_STEP and done.any():
-            info["final_obs"] = np.where(done[:, None], obs, 0.0).astype(np.float32)
+            info["final_obs"] = _masked(self._agent_view(obs), done)
             info["_final_obs"] = done
             info["final_info"] = {k: v for k, v in info.items() if not k.startswith("final")}
             info["_final_info"] = done
@@ -145,4 +146,20 @@ class ScaraVectorEnv(VectorEnv):
                 task.reset_robot(i, self._rngs[i])
                 obs[i] = task.observation(i, self._rngs[i])
         self._prev_done = done
-        return obs, reward, terminated, truncated, info
+        return self._agent_view(obs), reward, terminated, truncated, info
+
+    # -- hooks of the goal-conditioned vector env (scara_gym.envs.goal) -----------------
+    def _judge(self, reward: np.ndarray, terminated: np.ndarray, info: dict, resetting: np.ndarray):
+        """The step's reward, termination and info (robots in ``resetting`` were reset, not stepped)."""
+        return reward, terminated, info
+
+    def _agent_view(self, obs: np.ndarray):
+        """The observations as the agents get them, from the task's current robots."""
+        return obs
+
+
+def _masked(obs, done: np.ndarray):
+    """obs (an array or a dict of arrays over the robots) where done, 0 elsewhere."""
+    if isinstance(obs, dict):
+        return {key: _masked(value, done) for key, value in obs.items()}
+    return np.where(done[:, None], obs, 0).astype(obs.dtype)

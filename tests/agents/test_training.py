@@ -62,7 +62,7 @@ def test_an_interrupted_run_resumes_from_its_snapshot(algo, tmp_path, monkeypatc
 
     training.train(algo, out, hyperparams=_tiny(algo), total_timesteps=400)
     config = json.loads((out / "config.json").read_text())
-    assert config["resumed"] and config["total_timesteps"] == 400
+    assert config["resumed"] and config["total_timesteps"] == 500
     assert not (out / "snapshot").exists()
     history = np.load(out / "eval" / "evaluations.npz")
     steps = history["timesteps"]
@@ -95,3 +95,26 @@ def test_the_engineered_agents_variants_train_on_their_environment(variant, expe
     assert run_episode(env, training.SB3Policy(env, out), seed=0)["steps"] >= 1
     with pytest.raises(ValueError, match="variant must be None or one of"):
         ppo.train("pd", out=tmp_path / "x", variant="fast")
+
+
+def test_sac_with_her_trains_on_the_goal_env_resumes_and_is_evaluated(tmp_path):
+    """A short HER run on Scara-C11-Goal-v0: relabeled rewards come from the env's
+    compute_reward; the saved model reloads with its HER buffer; agents.evaluate runs it."""
+    from stable_baselines3 import HerReplayBuffer
+
+    from agents.evaluate import evaluate
+
+    hyper = training.load_hyperparams("sac", "Scara-C11-Goal-v0", "pd")
+    assert hyper["replay_buffer_class"] == "HerReplayBuffer"
+    # HER samples only finished episodes: learning starts after the first (at most 300 steps)
+    hyper.update(learning_starts=310, eval_freq=400, eval_episodes=1, snapshot_freq=400, buffer_size=2000)
+    out = tmp_path / "her"
+    training.train("sac", out, "Scara-C11-Goal-v0", "pd", seed=0, hyperparams=hyper, total_timesteps=500)
+    config = json.loads((out / "config.json").read_text())
+    assert config["env_id"] == "Scara-C11-Goal-v0" and config["total_timesteps"] == 500
+    model = training.algorithm_class("sac").load(out / "model.zip", env=training.make_envs(
+        "Scara-C11-Goal-v0", {"control_mode": "pd"}, hyper, seed=0)[0])
+    assert isinstance(model.replay_buffer, HerReplayBuffer)
+    rows, _ = evaluate([f"sb3:{out}"], env_id="Scara-C11-Goal-v0", randomize_target=True, episodes=2)
+    assert rows[0]["episodes"] == 2 and 0.0 <= rows[0]["success rate"] <= 1.0
+    assert all(o["success"] or o["collisions"] or o["reach_time"] is None for o in rows[0]["outcomes"])

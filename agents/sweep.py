@@ -1,0 +1,230 @@
+"""``python -m agents.sweep``: seeds x hyperparameter grids on Ray Tune, results as comparison tables.
+
+    python -m agents.sweep --algo sac --env-id Scara-C11-Goal-v0 --seeds 0 1 2 3 4 \\
+        --grid learning_rate=0.0003,0.001 --condition random-targets --out runs/sweeps/her
+    python -m agents.sweep --algo ppo-residual --seeds 0 1 2 --grid ent_coef=0,0.01 --address ray://head:10001
+
+Every trial is one training run (:func:`agents.training.train`, or agents.ppo's for the
+engineered agent) of the algorithm's YAML block with the grid point's overrides, then an
+evaluation of the trained policy over ``--episodes`` seeds from 1000 (the comparison's) in
+one condition of agents.compare. Ray Tune schedules the trials: on a local Ray runtime
+started for the sweep (nothing to set up; one CPU per trial by default) or on an existing
+cluster (``--address``). A trial that fails is reported and retried up to
+``--max-failures`` times; its run folder (``OUT/runs/TAG/seedN``) holds the training
+snapshots, so a retry resumes where the failed attempt stopped, and a finished run is
+not trained again (so a sweep can be re-run to fill in what is missing).
+
+Writes ``OUT/sweep.json`` (the comparison's entry format, one entry per grid point, every
+seed listed) and ``OUT/sweep.md`` (the comparison's table), plus Ray's own records under
+``OUT/ray``. Ray is an install extra: ``pip install "scara_gym[sweep]"``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import itertools
+import json
+import re
+import time
+from pathlib import Path
+
+import numpy as np
+
+ALGOS = ("ppo", "sac", "td3", "ppo-residual", "ppo-residual-dr", "ppo-residual-frugal")
+
+
+def parse_grid(items: list[str]) -> dict[str, list]:
+    """``name=v1,v2`` items -> {name: [values]}; values are YAML scalars (numbers, true, null)."""
+    import yaml
+
+    grid = {}
+    for item in items:
+        name, sep, values = item.partition("=")
+        if not sep or not name or not values:
+            raise ValueError(f"--grid takes NAME=V1,V2,..., got {item!r}")
+        grid[name] = [yaml.safe_load(v) for v in values.split(",")]
+    return grid
+
+
+def grid_points(grid: dict[str, list]) -> list[dict]:
+    """Every combination of the grid's values (one empty point for an empty grid)."""
+    names = sorted(grid)
+    return [dict(zip(names, values)) for values in itertools.product(*(grid[n] for n in names))]
+
+
+def tag(point: dict) -> str:
+    """A folder-safe name of a grid point: 'default' or 'lr=0.001_batch_size=64'."""
+    return "_".join(f"{k}={v}" for k, v in sorted(point.items())) or "default"
+
+
+def base_hyperparams(algo: str, env_id: str, control_mode: str) -> dict:
+    if algo.startswith("ppo-residual"):
+        from agents.ppo import load_hyperparams
+
+        variant = algo.removeprefix("ppo-residual").removeprefix("-") or None
+        return load_hyperparams(env_id, control_mode, variant=variant)
+    from agents.training import load_hyperparams
+
+    return load_hyperparams(algo, env_id, control_mode)
+
+
+def train_and_evaluate(algo: str, env_id: str, control_mode: str, seed: int, overrides: dict, out: Path,
+                       condition: str, episodes: int, total_timesteps: int | None = None) -> dict:
+    """One trial: train (or resume, or find finished) the run in ``out``, evaluate it; returns
+    the per-episode arrays of agents.compare plus the training seconds."""
+    from agents.compare import CONDITIONS, episodes_of, make_env
+    from agents.training import SB3Policy
+
+    hyper = {**base_hyperparams(algo, env_id, control_mode), **overrides}
+    unknown = sorted(set(overrides) - set(base_hyperparams(algo, env_id, control_mode)))
+    if unknown:
+        raise ValueError(f"--grid names {unknown} that {algo}'s YAML block for {env_id}/{control_mode} does not "
+                         f"have; it has {sorted(hyper)}")
+    if algo.startswith("ppo-residual"):
+        from agents.ppo import train
+
+        train(control_mode, seed=seed, total_timesteps=total_timesteps, out=out, hyperparams=hyper,
+              progress_bar=False, env_id=env_id)
+    else:
+        from agents.training import train
+
+        train(algo, out, env_id, control_mode, seed, hyperparams=hyper, total_timesteps=total_timesteps)
+    env = make_env(CONDITIONS[condition], control_mode, env_id)
+    runs = episodes_of(env, SB3Policy(env, out), episodes, seed=1000)
+    config = json.loads((out / "config.json").read_text())
+    return {**{k: v for k, v in runs.items() if k != "trace"}, "train_seconds": config["train_seconds"]}
+
+
+def _trial(config: dict) -> None:
+    """The Ray Tune trainable: one (grid point, seed), its arrays saved beside its run."""
+    from ray import tune
+
+    config = config["trial"]
+    out = Path(config["out"])
+    out.mkdir(parents=True, exist_ok=True)
+    with open(out / "attempts.log", "a") as log:  # one line per attempt: retries are visible
+        log.write(f"{time.time():.0f}\n")
+    result = train_and_evaluate(config["algo"], config["env_id"], config["control_mode"], config["seed"],
+                                config["point"], out, config["condition"], config["episodes"],
+                                config["total_timesteps"])
+    np.savez(out / "evaluation.npz", **{k: np.asarray(v) for k, v in result.items()})
+    reach = result["reach_time"]
+    tune.report({"success_rate": float(np.mean(result["success"])),
+                 "collision_rate": float(np.mean(result["collisions"])),
+                 "time_mean": float(np.nanmean(reach)) if np.isfinite(reach).any() else float("nan"),
+                 "energy_mean": float(np.mean(result["energy"])), "train_seconds": result["train_seconds"]})
+
+
+def run_sweep(algo: str, env_id: str, control_mode: str, seeds: list[int], grid: dict[str, list], out: Path,
+              condition: str = "c11", episodes: int = 100, total_timesteps: int | None = None,
+              address: str | None = None, cpus_per_trial: float = 1.0, max_failures: int = 2,
+              num_cpus: int | None = None, max_concurrent: int | None = None) -> list[dict]:
+    """Every (grid point, seed) as a Ray Tune trial; returns the comparison entries (and writes
+    sweep.json and sweep.md under ``out``). Failed trials (after their retries) are listed in
+    the entries' notes and in sweep.json's "failed"."""
+    import ray
+    from ray import tune
+
+    from agents.compare import CONDITIONS, entry
+
+    if algo not in ALGOS:
+        raise ValueError(f"algo must be one of {ALGOS}, got {algo!r}")
+    if condition not in CONDITIONS:
+        raise ValueError(f"condition must be one of {sorted(CONDITIONS)}, got {condition!r}")
+    out = Path(out).resolve()
+    points = grid_points(grid)
+    for point in points:  # bad names fail here, before any trial starts
+        unknown = sorted(set(point) - set(base_hyperparams(algo, env_id, control_mode)))
+        if unknown:
+            raise ValueError(f"--grid names {unknown} that {algo}'s YAML block for {env_id}/{control_mode} "
+                             f"does not have")
+    trials = [{"algo": algo, "env_id": env_id, "control_mode": control_mode, "seed": seed, "point": point,
+               "out": str(out / "runs" / tag(point) / f"seed{seed}"), "condition": condition,
+               "episodes": episodes, "total_timesteps": total_timesteps}
+              for point in points for seed in seeds]
+    package_root = str(Path(__file__).resolve().parent.parent)
+    started_here = not ray.is_initialized()
+    if started_here:
+        ray.init(address=address, num_cpus=None if address else num_cpus, include_dashboard=False,
+                 runtime_env={"env_vars": {"PYTHONPATH": package_root}} if address is None else None,
+                 log_to_driver=False)
+    try:
+        tuner = tune.Tuner(
+            tune.with_resources(_trial, {"cpu": cpus_per_trial}),
+            param_space={"trial": tune.grid_search(trials)},
+            tune_config=tune.TuneConfig(max_concurrent_trials=max_concurrent),
+            run_config=tune.RunConfig(name="ray", storage_path=str(out), verbose=0,
+                                      failure_config=tune.FailureConfig(max_failures=max_failures)))
+        results = tuner.fit()
+    finally:
+        if started_here:
+            ray.shutdown()
+    failed = []
+    for result in results:
+        if result.error is not None:
+            trial = result.config["trial"]
+            attempts = Path(trial["out"]) / "attempts.log"
+            failed.append({"point": trial["point"], "seed": trial["seed"],
+                           "attempts": len(attempts.read_text().split()) if attempts.exists() else None,
+                           "error": re.sub(r"\x1b\[[0-9;]*m", "", str(result.error))})
+    entries = []
+    for point in points:
+        seeds_done, runs, seconds = [], [], []
+        for seed in seeds:
+            path = out / "runs" / tag(point) / f"seed{seed}" / "evaluation.npz"
+            if path.exists() and not any(f["point"] == point and f["seed"] == seed for f in failed):
+                with np.load(path) as data:
+                    runs.append({k: data[k] for k in ("success", "collisions", "reach_time", "energy")})
+                    seconds.append(float(data["train_seconds"]))
+                seeds_done.append(seed)
+        missing = [s for s in seeds if s not in seeds_done]
+        note = f"failed seeds: {missing}" if missing else ""
+        if runs:
+            entries.append({**entry(f"{algo} {tag(point)}", "learned", algo, control_mode, condition, runs,
+                                    seeds_done, note=note, train_seconds=seconds), "hyperparameters": point})
+    (out / "sweep.json").write_text(json.dumps({"algo": algo, "env_id": env_id, "grid": grid, "seeds": seeds,
+                                               "condition": condition, "policies": entries, "failed": failed},
+                                               indent=2))
+    (out / "sweep.md").write_text(markdown(entries, failed))
+    return entries
+
+
+def markdown(entries: list[dict], failed: list[dict]) -> str:
+    from agents.compare import condition_tables
+
+    text = condition_tables(entries)
+    if failed:
+        text += "\nFailed trials (after their retries):\n\n" + "\n".join(
+            f"- {tag(f['point'])} seed {f['seed']} ({f['attempts']} attempts): "
+            f"{f['error'].splitlines()[-1] if f['error'] else ''}"
+            for f in failed) + "\n"
+    return text
+
+
+def main(argv: list[str] | None = None) -> list[dict]:
+    parser = argparse.ArgumentParser(prog="python -m agents.sweep", description=__doc__.split("\n\n")[0])
+    parser.add_argument("--algo", choices=ALGOS, required=True)
+    parser.add_argument("--env-id", default=None, help="default: Scara-C11-v1")
+    parser.add_argument("--control-mode", choices=("pd", "voltage"), default="pd")
+    parser.add_argument("--seeds", nargs="+", type=int, default=[0, 1, 2, 3, 4])
+    parser.add_argument("--grid", nargs="*", default=[], metavar="NAME=V1,V2",
+                        help="hyperparameter values to cross (names of the algorithm's YAML block)")
+    parser.add_argument("--condition", default="c11", help="the evaluation condition of agents.compare")
+    parser.add_argument("--episodes", type=int, default=100)
+    parser.add_argument("--total-timesteps", type=int, default=None, help="default: n_timesteps of the YAML")
+    parser.add_argument("--out", type=Path, default=Path("runs/sweeps/default"))
+    parser.add_argument("--address", default=None, help="an existing Ray cluster (default: a local runtime)")
+    parser.add_argument("--cpus-per-trial", type=float, default=1.0)
+    parser.add_argument("--max-failures", type=int, default=2, help="retries of a failed trial")
+    args = parser.parse_args(argv)
+    from scara_gym import LATEST_ENV_ID
+
+    entries = run_sweep(args.algo, args.env_id or LATEST_ENV_ID, args.control_mode, args.seeds,
+                        parse_grid(args.grid), args.out, args.condition, args.episodes, args.total_timesteps,
+                        args.address, args.cpus_per_trial, args.max_failures)
+    print((args.out / "sweep.md").read_text())
+    return entries
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,297 @@
+"""Scara-C11-Goal-v0: the C11 move as a goal-conditioned task (the Gymnasium-Robotics goal API).
+
+The goal is the joint target q^; the achieved goal is q. Rewards and episode ends are
+functions of (achieved_goal, desired_goal, info), so that hindsight relabeling (SB3's
+``HerReplayBuffer``) can recompute them for other goals. The physics, the wall and the
+located events are ScaraEnv's.
+"""
+
+from __future__ import annotations
+
+import inspect
+from collections.abc import Mapping
+
+import numpy as np
+from gymnasium import spaces
+from gymnasium.vector import AutoresetMode
+
+from scara_gym import ENV_VARIANTS
+from scara_gym.envs.core import DISTANCE_SCALE
+from scara_gym.envs.scara_env import ScaraEnv
+from scara_gym.envs.task import OBSERVATION_LAYOUT, OBSERVATION_NAMES
+from scara_gym.envs.vector import ScaraVectorEnv
+from scara_gym.model import checks
+
+REWARD_TYPES = ("sparse", "dense")
+GOAL_TERMS = ("goal", "collision")
+GOAL_SLACK = 1e-6
+"""[rad or m] added to acc in the goal test: covers the float32 rounding of the goals, so
+that the located C11 event (all |q_i - q^_i| < acc) always passes the test on the goals"""
+# the goal-free observation: the target error would tie it to the goal HER replaces
+KEPT = np.array([i for i, name in enumerate(OBSERVATION_NAMES) if not name.startswith("target_error")])
+GOAL_OBSERVATION_NAMES = tuple(OBSERVATION_NAMES[i] for i in KEPT)
+Q = OBSERVATION_LAYOUT["q"]
+
+
+def _costs(info, batch: int | None) -> np.ndarray | float:
+    """info["cost"] of one info dict, a sequence or array of them (SB3's replay buffer), or a
+    dict of arrays (the vector env); None or {}: no collision."""
+    if info is None or (isinstance(info, Mapping) and not info):
+        return 0.0 if batch is None else np.zeros(batch)
+    missing = ("info must hold 'cost' (the step's collision cost) for the collision term; with SB3's "
+               "HerReplayBuffer pass replay_buffer_kwargs={'copy_info_dict': True}")
+    if isinstance(info, Mapping):
+        if "cost" not in info:
+            raise KeyError(missing)
+        cost = np.asarray(info["cost"], dtype=np.float64)
+    else:
+        items = np.asarray(info, dtype=object)
+        if not all(isinstance(item, Mapping) and "cost" in item for item in items.ravel()):
+            raise KeyError(missing)
+        cost = np.array([item["cost"] for item in items.ravel()], dtype=np.float64).reshape(items.shape)
+    return float(cost) if batch is None and cost.ndim == 0 else cost
+
+
+class GoalRules:
+    """Reward, success and episode end of the goal task as functions of the goals (batched)."""
+
+    def __init__(self, reward_type: str, collision_penalty: float, accuracy: float, collision_mode: str) -> None:
+        self.reward_type = checks.choice("reward_type", reward_type, REWARD_TYPES)
+        self.collision_penalty = checks.real("collision_penalty", collision_penalty, 0.0, 1e6)
+        self.threshold = accuracy + GOAL_SLACK
+        self.terminate_on_collision = collision_mode == "terminate"
+
+    def success(self, achieved_goal, desired_goal) -> np.ndarray:
+        error = np.abs(np.asarray(achieved_goal, dtype=np.float64) - np.asarray(desired_goal, dtype=np.float64))
+        return error.max(axis=-1) < self.threshold
+
+    def terms(self, achieved_goal, desired_goal, info) -> dict:
+        achieved = np.asarray(achieved_goal, dtype=np.float64)
+        desired = np.asarray(desired_goal, dtype=np.float64)
+        batch = None if achieved.ndim == 1 else achieved.shape[0]
+        if self.reward_type == "sparse":
+            goal = -(~self.success(achieved, desired)).astype(np.float64)
+        else:
+            goal = -np.linalg.norm((achieved - desired) / DISTANCE_SCALE, axis=-1)
+        collision = -self.collision_penalty * _costs(info, batch)
+        return {"goal": goal, "collision": collision}
+
+    def reward(self, achieved_goal, desired_goal, info):
+        terms = self.terms(achieved_goal, desired_goal, info)
+        total = terms["goal"] + terms["collision"]
+        return float(total) if np.ndim(total) == 0 else total
+
+    def terminated(self, achieved_goal, desired_goal, info):
+        done = self.success(achieved_goal, desired_goal)
+        if self.terminate_on_collision:
+            batch = None if np.ndim(achieved_goal) == 1 else np.shape(achieved_goal)[0]
+            done = done | (np.asarray(_costs(info, batch)) > 0)
+        return bool(done) if np.ndim(done) == 0 else done
+
+
+def _goal_spaces(task) -> spaces.Dict:
+    low, high = task.obs_low, task.obs_high
+    goal = spaces.Box(low[Q], high[Q], dtype=np.float32)
+    return spaces.Dict({
+        "observation": spaces.Box(low[KEPT], high[KEPT], dtype=np.float32),
+        "achieved_goal": goal,
+        "desired_goal": goal,
+    })
+
+
+class ScaraGoalEnv(ScaraEnv):
+    """Scara-C11-Goal-v0: reach a goal configuration fast without hitting the wall (goal API).
+
+    The C11 robot, wall and physics of Scara-C11-v1 with the Gymnasium-Robotics goal
+    interface: the goal is the joint target q^ (drawn per episode by default), the achieved
+    goal is q, and reward, success and episode end are functions of (achieved_goal,
+    desired_goal, info) so that hindsight experience replay can relabel goals
+    (``compute_reward``, ``compute_terminated``, ``compute_truncated``, batched).
+
+    ## Action space
+
+    ``Box(-1, 1, (3,), float32)``, as Scara-C11-v1: in "pd" mode (the default) a PD
+    set-point (q^1 = a0 * pi rad, q^2 = a1 * pi rad, q^3 = 0.2 + 0.2 a2 m), in "voltage"
+    mode armature voltages a_i * limit_i.
+
+    ## Observation space
+
+    ``Dict`` of three float32 Boxes:
+
+    | key | shape | content |
+    |---|---|---|
+    | observation | (15,) | ScaraEnv's observation without target_error1..3 |
+    | achieved_goal | (3,) | q = (q1, q2, q3) [rad, rad, m] |
+    | desired_goal | (3,) | the target q^ [rad, rad, m] |
+
+    "observation" holds q1, q2, q3, q1_rate, q2_rate, q3_rate, current1, current2,
+    current3, tip_x, tip_y, wall_distance, height_margin, critical, time_left, with
+    ScaraEnv's units and bounds (the target error is left out: it would tie the
+    observation to the goal hindsight relabeling replaces). Observation noise, where
+    configured, applies to "observation" only; the goals are exact (float32).
+
+    ## Reward
+
+    The sum of two named terms (in ``info["reward_terms"]``), from the goals and the info:
+
+    | reward_type | goal term |
+    |---|---|
+    | sparse | -1 per step until the goal is reached, 0 on reaching it |
+    | dense | -\\|\\|(q - q^) / (1 rad, 1 rad, 0.1 m)\\|\\| after the step |
+
+    collision term: -collision_penalty x ``info["cost"]`` (1 in a step in which the tip hit
+    the wall). ``compute_reward(achieved_goal, desired_goal, info)`` gives the same over a
+    batch (info: one dict, a sequence or array of dicts, or a dict of arrays; None: no
+    collisions).
+
+    ## Starting state
+
+    q = ``start`` (default (0, 0, 0)) at rest. The goal is drawn per episode as
+    ScaraEnv's ``randomize_target`` draws it: q^1, q^2 in [1.5, 2.5] rad, q^3 in
+    [0.2, 0.35] m, beyond the wall and above it; ``randomize_target=False`` keeps the C11
+    target (2, 2, 0.3); ``reset(options={"target": ...})`` sets it for one episode.
+
+    ## Episode end
+
+    - terminated: the goal is reached: max_i |achieved_i - desired_i| < acc + 1e-6 on the
+      goals (acc = 0.001; the slack covers float32 rounding, so that the C11 event located
+      inside the step always passes), or a collision with ``collision="terminate"``;
+      ``compute_terminated`` gives the same over a batch.
+    - truncated: only by the time limit, ``max_episode_steps=300`` (3 s) as registered;
+      ``compute_truncated`` is False for every transition.
+
+    ## Info
+
+    ScaraEnv's step info (cost, collision, collisions, critical, time, energy, ...) with
+    ``is_success`` from the goal test and ``reward_terms`` holding the two terms above.
+
+    ## Arguments
+
+    - reward_type ("sparse"): "sparse" or "dense", see the reward.
+    - collision_penalty (50.0): the collision term's weight, in [0, 1e6]; with
+      collision="terminate" a collision ends the episode, so the penalty must outweigh
+      the sparse reward's steps it saves for a collision not to pay.
+    - control_mode ("pd"): "pd" or "voltage", as ScaraEnv.
+    - obstacle (True): the wall of task c and the widened voltage near it.
+    - collision ("terminate"): "terminate" or "penalty" (the arm passes through).
+    - target (None): the goal when not drawn; None: the C11 target (2, 2, 0.3).
+    - start (None): q(0) [rad, rad, m]; None: the C11 start (0, 0, 0).
+    - randomize_target (True): draw the goal per episode, see the starting state.
+    - control_dt (0.01): control step [s].
+    - time_limit (3.0): horizon of the time_left feature [s].
+    - params (None): a ScaraParams or dotted-path overrides, as ScaraEnv.
+    - rtol (1e-06): relative integration tolerance, as ScaraEnv.
+    - atol (1e-08): absolute integration tolerance, as ScaraEnv.
+    - exact_switches (True): locate every mode switch inside the integration steps.
+    - randomize_params (False): parameters drawn per episode, as ScaraEnv.
+    - observation_noise (None): sim-to-real noise on "observation", as ScaraEnv.
+    - action_delay (0): sim-to-real dead time in control steps, as ScaraEnv.
+    - action_rate_limit (None): sim-to-real slew limit [action units / s], as ScaraEnv.
+    - render_mode (None): "rgb_array" or "human".
+
+    ## Version history
+
+    - v0: first release: the goal API on Scara-C11-v1's physics (``exact_switches=True``,
+      ``rtol=1e-6``, ``atol=1e-8``) with goals drawn per episode (``randomize_target=True``).
+    """
+
+    env_id = "Scara-C11-Goal-v0"
+    observation_names = GOAL_OBSERVATION_NAMES
+
+    def __init__(self, reward_type: str = "sparse", collision_penalty: float = 50.0, control_mode: str = "pd",
+                 obstacle: bool = True, collision: str = "terminate", target=None, start=None,
+                 randomize_target: bool = True, control_dt: float = 0.01, time_limit: float = 3.0,
+                 params=None, rtol: float = 1e-6, atol: float = 1e-8, exact_switches: bool = True,
+                 randomize_params=False, observation_noise: dict | None = None, action_delay: int = 0,
+                 action_rate_limit: float | None = None, render_mode: str | None = None) -> None:
+        super().__init__(control_mode=control_mode, obstacle=obstacle, collision=collision, target=target,
+                         start=start, randomize_target=randomize_target, control_dt=control_dt,
+                         time_limit=time_limit, params=params, rtol=rtol, atol=atol,
+                         exact_switches=exact_switches, randomize_params=randomize_params,
+                         observation_noise=observation_noise, action_delay=action_delay,
+                         action_rate_limit=action_rate_limit, render_mode=render_mode)
+        self.rules = GoalRules(reward_type, collision_penalty, self.params.task.accuracy, self.collision_mode)
+        self.observation_space = _goal_spaces(self.task)
+
+    reward_type = property(lambda self: self.rules.reward_type)
+
+    def _goal_obs(self, obs: np.ndarray) -> dict:
+        task = self.task
+        return {"observation": obs[KEPT], "achieved_goal": task.obs[0][Q].copy(),
+                "desired_goal": task.robot_params["target"][0].astype(np.float32)}
+
+    def reset(self, *, seed: int | None = None, options: dict | None = None):
+        obs, info = super().reset(seed=seed, options=options)
+        return self._goal_obs(obs), info
+
+    def step(self, action):
+        obs, _, _, _, info = super().step(action)
+        goal_obs = self._goal_obs(obs)
+        achieved, desired = goal_obs["achieved_goal"], goal_obs["desired_goal"]
+        terms = self.rules.terms(achieved, desired, info)
+        info["reward_terms"] = {name: float(value) for name, value in terms.items()}
+        info["is_success"] = bool(self.rules.success(achieved, desired))
+        terminated = self.rules.terminated(achieved, desired, info)
+        self._needs_reset = terminated
+        return goal_obs, self.rules.reward(achieved, desired, info), terminated, False, info
+
+    def compute_reward(self, achieved_goal, desired_goal, info):
+        """The step reward for (batches of) goals: shape (...,) for goals of shape (..., 3)."""
+        return self.rules.reward(achieved_goal, desired_goal, info)
+
+    def compute_terminated(self, achieved_goal, desired_goal, info):
+        return self.rules.terminated(achieved_goal, desired_goal, info)
+
+    def compute_truncated(self, achieved_goal, desired_goal, info):
+        """False for every transition: only the time limit truncates."""
+        shape = np.shape(achieved_goal)[:-1]
+        return False if shape == () else np.zeros(shape, dtype=bool)
+
+
+assert {k: v for k, v in ENV_VARIANTS[ScaraGoalEnv.env_id].items()} == {
+    name: inspect.signature(ScaraGoalEnv.__init__).parameters[name].default
+    for name in ENV_VARIANTS[ScaraGoalEnv.env_id]}, "the registered arguments are the class defaults"
+
+
+class ScaraGoalVectorEnv(ScaraVectorEnv):
+    """N copies of Scara-C11-Goal-v0 stepped in parallel (ScaraVectorEnv's arguments plus
+    reward_type and collision_penalty). Observations are a dict of batched arrays; with
+    ``autoreset_mode="SameStep"`` ``info["final_obs"]`` is such a dict too (zero for the
+    robots that did not end). Robot i is the single env seeded seed + i."""
+
+    def __init__(self, num_envs: int = 1, max_episode_steps: int = 300,
+                 autoreset_mode: str | AutoresetMode = AutoresetMode.NEXT_STEP, num_threads: int | None = None,
+                 reward_type: str = "sparse", collision_penalty: float = 50.0, **kwargs) -> None:
+        defaults = {name: p.default for name, p in inspect.signature(ScaraGoalEnv.__init__).parameters.items()
+                    if name not in ("self", "reward_type", "collision_penalty", "render_mode")}
+        super().__init__(num_envs, max_episode_steps, autoreset_mode, num_threads, **{**defaults, **kwargs})
+        self.rules = GoalRules(reward_type, collision_penalty, self.task.params.task.accuracy,
+                               self.task.collision_mode)
+        self.single_observation_space = _goal_spaces(self.task)
+        from gymnasium.vector.utils import batch_space
+        self.observation_space = batch_space(self.single_observation_space, self.num_envs)
+
+    def _agent_view(self, obs: np.ndarray) -> dict:
+        task = self.task
+        return {"observation": obs[:, KEPT], "achieved_goal": task.obs[:, Q].copy(),
+                "desired_goal": task.robot_params["target"].astype(np.float32)}
+
+    def _judge(self, reward, terminated, info, resetting):
+        achieved = self.task.obs[:, Q]
+        desired = self.task.robot_params["target"].astype(np.float32)
+        terms = self.rules.terms(achieved, desired, info)
+        stepped = ~resetting  # a robot reset in this step (NextStep) gets reward 0 and goes on
+        terms = {name: np.where(stepped, value, 0.0) for name, value in terms.items()}
+        info["reward_terms"] = terms
+        info["is_success"] = self.rules.success(achieved, desired) & stepped
+        terminated = self.rules.terminated(achieved, desired, info) & stepped
+        return terms["goal"] + terms["collision"], terminated, info
+
+    def compute_reward(self, achieved_goal, desired_goal, info):
+        return self.rules.reward(achieved_goal, desired_goal, info)
+
+    def compute_terminated(self, achieved_goal, desired_goal, info):
+        return self.rules.terminated(achieved_goal, desired_goal, info)
+
+    def compute_truncated(self, achieved_goal, desired_goal, info):
+        return np.zeros(np.shape(achieved_goal)[:-1], dtype=bool)

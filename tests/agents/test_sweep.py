@@ -1,0 +1,50 @@
+"""agents.sweep: seeds x grids on a local Ray runtime, results in the comparison's format."""
+
+import json
+
+import numpy as np
+import pytest
+
+pytest.importorskip("ray")
+
+from agents import sweep  # noqa: E402
+
+
+def test_grid_parsing_and_tags():
+    grid = sweep.parse_grid(["learning_rate=0.0003,0.001", "ent_coef=auto", "use_sde=true"])
+    assert grid == {"learning_rate": [0.0003, 0.001], "ent_coef": ["auto"], "use_sde": [True]}
+    points = sweep.grid_points({"a": [1, 2], "b": [3]})
+    assert points == [{"a": 1, "b": 3}, {"a": 2, "b": 3}]
+    assert sweep.tag({"b": 3, "a": 1}) == "a=1_b=3" and sweep.tag({}) == "default"
+    with pytest.raises(ValueError, match="--grid takes NAME=V1,V2"):
+        sweep.parse_grid(["learning_rate"])
+
+
+def test_a_two_trial_local_sweep_reports_the_trial_that_trains_and_the_one_that_fails(tmp_path):
+    """Two grid points on a local Ray runtime: one trains and is evaluated; the other fails
+    (SB3 refuses batch_size 0), is retried once, and is reported, not lost."""
+    entries = sweep.run_sweep("ppo", "Scara-C11-v1", "pd", seeds=[0],
+                              grid={"n_steps": [64], "batch_size": [64, 0], "n_epochs": [1], "n_envs": [1]},
+                              out=tmp_path, episodes=2, total_timesteps=64, max_failures=1, num_cpus=2)
+    assert [e["hyperparameters"]["batch_size"] for e in entries] == [64]
+    good = entries[0]
+    assert good["seeds"] == [0] and good["episodes"] == 2 and good["kind"] == "learned"
+    assert set(good) >= {"name", "algorithm", "success_rate", "collision_rate", "time_iqm", "time_ci",
+                         "energy_mean", "condition", "per_seed"}
+    run = tmp_path / "runs" / "batch_size=64_n_envs=1_n_epochs=1_n_steps=64" / "seed0"
+    assert (run / "model.zip").exists() and json.loads((run / "config.json").read_text())["total_timesteps"] == 64
+    with np.load(run / "evaluation.npz") as data:
+        assert data["success"].shape == (2,)
+    written = json.loads((tmp_path / "sweep.json").read_text())
+    assert written["policies"] == json.loads(json.dumps(entries))
+    (failure,) = written["failed"]
+    assert failure["point"]["batch_size"] == 0 and failure["attempts"] == 2
+    assert "batch_size" in failure["error"]
+    table = (tmp_path / "sweep.md").read_text()
+    assert "| ppo batch_size=64_n_envs=1_n_epochs=1_n_steps=64 | learned | pd | 0 | 2 |" in table
+    assert "Failed trials" in table and "(2 attempts)" in table
+
+
+def test_unknown_grid_names_are_refused_before_any_trial(tmp_path):
+    with pytest.raises(ValueError, match=r"--grid names \['learning_rat'\]"):
+        sweep.run_sweep("sac", "Scara-C11-v1", "pd", seeds=[0], grid={"learning_rat": [0.1]}, out=tmp_path)

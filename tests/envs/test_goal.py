@@ -1,0 +1,157 @@
+"""Scara-C11-Goal-v0: the goal API (compute_reward and friends), its card, its vector env."""
+
+import inspect
+import re
+import warnings
+
+import gymnasium as gym
+import numpy as np
+import pytest
+from gymnasium.utils.env_checker import check_env
+
+import scara_gym  # noqa: F401
+from scara_gym.envs.goal import GOAL_OBSERVATION_NAMES, ScaraGoalEnv
+
+GOAL = "Scara-C11-Goal-v0"
+
+
+def transitions(reward_type: str, count: int = 1000):
+    """(achieved, desired, infos, rewards, terminated, truncated, base events) of `count` steps:
+    PD moves straight at the goal, which hit the wall, and the same without the wall, which
+    reach it; random set-points in between."""
+    rng = np.random.default_rng(0)
+    envs = [gym.make(GOAL, reward_type=reward_type), gym.make(GOAL, reward_type=reward_type, obstacle=False)]
+    rows = []
+    episode = 0
+    while len(rows) < count:
+        env = envs[episode % 2]
+        obs, _ = env.reset(seed=episode)
+        straight = env.unwrapped.setpoint_to_action(obs["desired_goal"])
+        for _ in range(300):
+            action = straight if rng.random() < 0.95 else rng.uniform(-1, 1, 3)
+            obs, reward, terminated, truncated, info = env.step(action.astype(np.float32))
+            reached = bool(env.unwrapped.task.outcomes["reached"][0])
+            rows.append((obs["achieved_goal"], obs["desired_goal"], info, reward, terminated, truncated, reached))
+            if terminated or truncated:
+                break
+        episode += 1
+    achieved, desired, infos, rewards, terms, truncs, reached = zip(*rows[:count])
+    return (np.array(achieved), np.array(desired), np.array(infos, dtype=object), np.array(rewards),
+            np.array(terms), np.array(truncs), np.array(reached))
+
+
+@pytest.mark.parametrize("reward_type", ["sparse", "dense"])
+def test_compute_functions_over_a_batch_equal_the_steps(reward_type):
+    env = gym.make(GOAL, reward_type=reward_type).unwrapped
+    achieved, desired, infos, rewards, terminated, truncated, reached = transitions(reward_type)
+    assert achieved.shape == (1000, 3) and achieved.dtype == np.float32
+    successes = np.array([i["is_success"] for i in infos])
+    collisions = np.array([i["cost"] for i in infos]) > 0
+    assert successes.sum() >= 3 and collisions.sum() >= 3  # both kinds of episode end are in the batch
+    np.testing.assert_array_equal(env.compute_reward(achieved, desired, infos), rewards)
+    np.testing.assert_array_equal(env.compute_terminated(achieved, desired, infos), terminated)
+    np.testing.assert_array_equal(env.compute_truncated(achieved, desired, infos), truncated)
+    # a dict of arrays (the vector env's info) and one transition at a time say the same
+    as_arrays = {"cost": np.array([i["cost"] for i in infos])}
+    np.testing.assert_array_equal(env.compute_reward(achieved, desired, as_arrays), rewards)
+    assert [env.compute_reward(a, d, i) for a, d, i in zip(achieved[:50], desired[:50], infos[:50])] == \
+        rewards[:50].tolist()
+    # the named terms sum to the reward, and the located C11 event always counts as success
+    assert all(sum(i["reward_terms"].values()) == r for i, r in zip(infos, rewards))
+    assert np.all(successes[reached])
+
+
+def test_relabeled_goals_are_rewarded_by_the_goal_test():
+    env = ScaraGoalEnv()
+    achieved = np.random.default_rng(1).uniform(-1, 1, (100, 3)).astype(np.float32)
+    info = np.array([{"cost": 0.0}] * 100, dtype=object)
+    np.testing.assert_array_equal(env.compute_reward(achieved, achieved, info), np.zeros(100))
+    np.testing.assert_array_equal(env.compute_reward(achieved, achieved + 0.01, info), -np.ones(100))
+    hit = np.array([{"cost": 1.0}] * 100, dtype=object)
+    np.testing.assert_array_equal(env.compute_reward(achieved, achieved, hit), -50.0 * np.ones(100))
+    assert env.compute_terminated(achieved, achieved + 0.01, hit).all()
+    with pytest.raises(KeyError, match="copy_info_dict"):
+        env.compute_reward(achieved, achieved, np.array([{}] * 100, dtype=object))
+
+
+def test_the_goal_env_passes_the_checkers_and_is_deterministic():
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        check_env(gym.make(GOAL).unwrapped, skip_render_check=True)
+        pytest.importorskip("stable_baselines3.common.env_checker").check_env(ScaraGoalEnv(), warn=True)
+    assert [str(w.message) for w in caught] == []
+
+    def rollout(seed):
+        env = gym.make(GOAL, reward_type="dense")
+        rng = np.random.default_rng(seed)
+        obs, _ = env.reset(seed=seed)
+        out = [np.concatenate(list(obs.values()))]
+        for _ in range(60):
+            obs, reward, terminated, truncated, _ = env.step(rng.uniform(-1, 1, 3).astype(np.float32))
+            out.append(np.concatenate([*obs.values(), [reward, terminated]]))
+            if terminated or truncated:
+                obs, _ = env.reset()
+        return np.concatenate(out)
+
+    np.testing.assert_array_equal(rollout(3), rollout(3))
+    assert not np.array_equal(rollout(3), rollout(4))
+
+
+@pytest.mark.parametrize("autoreset_mode", ["NextStep", "SameStep"])
+def test_each_robot_of_the_goal_vector_env_is_the_single_env(autoreset_mode):
+    n, seed = 3, 7
+    venv = gym.make_vec(GOAL, num_envs=n, vectorization_mode="vector_entry_point", autoreset_mode=autoreset_mode,
+                        obstacle=False, observation_noise={"rate": 0.01})
+    assert venv.single_observation_space == ScaraGoalEnv(obstacle=False, observation_noise={"rate": 0.01}).observation_space
+    obs, _ = venv.reset(seed=seed)
+    singles = [gym.make(GOAL, obstacle=False, observation_noise={"rate": 0.01}) for _ in range(n)]
+    single_obs = [env.reset(seed=seed + i)[0] for i, env in enumerate(singles)]
+    pending = [False] * n
+    actions = np.array([env.unwrapped.setpoint_to_action(o["desired_goal"]) for env, o in zip(singles, single_obs)])
+    ended = 0
+    for _ in range(200):
+        for key in obs:
+            np.testing.assert_array_equal(obs[key], np.array([o[key] for o in single_obs]))
+        obs, reward, terminated, truncated, info = venv.step(actions)
+        for i, env in enumerate(singles):
+            if pending[i]:  # NextStep: this step reset robot i
+                single_obs[i], _ = env.reset()
+                pending[i] = False
+                assert reward[i] == 0.0 and not terminated[i]
+                continue
+            o, r, te, tr, single_info = env.step(actions[i])
+            assert (r, te, tr) == (reward[i], terminated[i], truncated[i])
+            assert single_info["is_success"] == info["is_success"][i]
+            if te or tr:
+                ended += 1
+                if autoreset_mode == "SameStep":
+                    for key in o:
+                        np.testing.assert_array_equal(info["final_obs"][key][i], o[key])
+                    o, _ = env.reset()
+                else:
+                    pending[i] = True
+            single_obs[i] = o
+    assert ended >= n  # every robot reached its goal at least once
+
+
+def test_the_card_matches_the_spaces_and_arguments():
+    doc = inspect.getdoc(ScaraGoalEnv)
+    env = ScaraGoalEnv()
+    rows = {r[0]: r for r in re.findall(r"^\| (\w+) \| \((\d+),\) \| (.*?) \|$", doc, flags=re.M)}
+    assert set(rows) == set(env.observation_space.spaces)
+    for key, space in env.observation_space.spaces.items():
+        assert space.shape == (int(rows[key][1]),) and space.dtype == np.float32
+    listed = re.search(r'"observation" holds (.*?), with', doc, flags=re.S).group(1)
+    assert [n.strip() for n in listed.split(",")] == list(GOAL_OBSERVATION_NAMES)
+    arguments = doc[doc.index("## Arguments"):doc.index("## Version history")]
+    documented = dict(re.findall(r"^- (\w+) \(([^)]*)\)", arguments, flags=re.M))
+    parameters = {n: p for n, p in inspect.signature(ScaraGoalEnv.__init__).parameters.items() if n != "self"}
+    assert list(documented) == list(parameters)
+    for name, parameter in parameters.items():
+        assert documented[name] == repr(parameter.default).replace("'", '"'), name
+    for reward_type in ("sparse", "dense"):
+        assert f"| {reward_type} |" in doc
+    with pytest.raises(ValueError, match="reward_type must be one of 'sparse', 'dense'"):
+        ScaraGoalEnv(reward_type="shaped")
+    with pytest.raises(ValueError, match=r"collision_penalty must be a finite number in \[0, 1e\+06\]"):
+        ScaraGoalEnv(collision_penalty=-1.0)
