@@ -62,7 +62,7 @@ def test_an_interrupted_run_resumes_from_its_snapshot(algo, tmp_path, monkeypatc
 
     training.train(algo, out, hyperparams=_tiny(algo), total_timesteps=400)
     config = json.loads((out / "config.json").read_text())
-    assert config["resumed"] and config["total_timesteps"] == 500
+    assert config["resumed"] and config["total_timesteps"] == 400
     assert not (out / "snapshot").exists()
     history = np.load(out / "eval" / "evaluations.npz")
     steps = history["timesteps"]
