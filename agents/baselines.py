@@ -50,20 +50,44 @@ def run_lock(out: Path):
             fcntl.flock(handle, fcntl.LOCK_UN)
 
 
-def train_one(algo: str, seed: int, runs: Path, env_id: str = LATEST_ENV_ID, control_mode: str = "pd",
-              total_timesteps: int | None = None) -> Path:
-    out = run_dir(runs, env_id, control_mode, algo, seed)
-    command = (f"python -m agents.baselines --algos {algo} --seeds {seed} --env-id {env_id} "
-               f"--control-mode {control_mode} --runs {runs}")
+def variant_of(algo: str) -> str | None:
+    """The engineered agent's variant an algorithm name carries ("dr", "frugal"; None)."""
+    return algo.removeprefix("ppo-residual").removeprefix("-") or None
+
+
+def hyperparams_of(algo: str, env_id: str = LATEST_ENV_ID, control_mode: str = "pd") -> dict:
+    """The YAML block a run of ``algo`` trains with."""
+    if algo.startswith("ppo-residual"):
+        from agents.ppo import load_hyperparams
+
+        return load_hyperparams(env_id, control_mode, variant=variant_of(algo))
+    from agents.training import load_hyperparams
+
+    return load_hyperparams(algo, env_id, control_mode)
+
+
+def train_run(algo: str, out: Path, seed: int, env_id: str = LATEST_ENV_ID, control_mode: str = "pd",
+              total_timesteps: int | None = None, hyperparams: dict | None = None,
+              command: str | None = None) -> Path:
+    """Train (or resume, or find finished) one run of ``algo`` into ``out``; hyperparams: the
+    block to train with (default: hyperparams_of)."""
     if algo.startswith("ppo-residual"):
         from agents.ppo import train
 
-        variant = algo.removeprefix("ppo-residual").removeprefix("-") or None
-        return train(control_mode, seed=seed, total_timesteps=total_timesteps, out=out, progress_bar=False,
-                     env_id=env_id, variant=variant)
+        return train(control_mode, seed=seed, total_timesteps=total_timesteps, out=out, hyperparams=hyperparams,
+                     progress_bar=False, env_id=env_id, variant=variant_of(algo))
     from agents.training import train
 
-    return train(algo, out, env_id, control_mode, seed, total_timesteps=total_timesteps, command=command)
+    return train(algo, out, env_id, control_mode, seed, hyperparams=hyperparams, total_timesteps=total_timesteps,
+                 command=command)
+
+
+def train_one(algo: str, seed: int, runs: Path, env_id: str = LATEST_ENV_ID, control_mode: str = "pd",
+              total_timesteps: int | None = None) -> Path:
+    command = (f"python -m agents.baselines --algos {algo} --seeds {seed} --env-id {env_id} "
+               f"--control-mode {control_mode} --runs {runs}")
+    return train_run(algo, run_dir(runs, env_id, control_mode, algo, seed), seed, env_id, control_mode,
+                     total_timesteps, command=command)
 
 
 def main(argv: list[str] | None = None) -> list[Path]:

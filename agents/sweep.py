@@ -30,7 +30,7 @@ from pathlib import Path
 
 import numpy as np
 
-ALGOS = ("ppo", "sac", "td3", "ppo-residual", "ppo-residual-dr", "ppo-residual-frugal")
+from agents.baselines import ALGOS, hyperparams_of, train_run
 
 
 def parse_grid(items: list[str]) -> dict[str, list]:
@@ -57,15 +57,14 @@ def tag(point: dict) -> str:
     return "_".join(f"{k}={v}" for k, v in sorted(point.items())) or "default"
 
 
-def base_hyperparams(algo: str, env_id: str, control_mode: str) -> dict:
-    if algo.startswith("ppo-residual"):
-        from agents.ppo import load_hyperparams
-
-        variant = algo.removeprefix("ppo-residual").removeprefix("-") or None
-        return load_hyperparams(env_id, control_mode, variant=variant)
-    from agents.training import load_hyperparams
-
-    return load_hyperparams(algo, env_id, control_mode)
+def point_hyperparams(algo: str, env_id: str, control_mode: str, point: dict) -> dict:
+    """The algorithm's YAML block with a grid point's overrides; a name the block lacks is an error."""
+    hyper = hyperparams_of(algo, env_id, control_mode)
+    unknown = sorted(set(point) - set(hyper))
+    if unknown:
+        raise ValueError(f"--grid names {unknown} that {algo}'s YAML block for {env_id}/{control_mode} does not "
+                         f"have; it has {sorted(hyper)}")
+    return {**hyper, **point}
 
 
 def train_and_evaluate(algo: str, env_id: str, control_mode: str, seed: int, overrides: dict, out: Path,
@@ -75,20 +74,8 @@ def train_and_evaluate(algo: str, env_id: str, control_mode: str, seed: int, ove
     from agents.compare import CONDITIONS, episodes_of, make_env
     from agents.training import SB3Policy
 
-    hyper = {**base_hyperparams(algo, env_id, control_mode), **overrides}
-    unknown = sorted(set(overrides) - set(base_hyperparams(algo, env_id, control_mode)))
-    if unknown:
-        raise ValueError(f"--grid names {unknown} that {algo}'s YAML block for {env_id}/{control_mode} does not "
-                         f"have; it has {sorted(hyper)}")
-    if algo.startswith("ppo-residual"):
-        from agents.ppo import train
-
-        train(control_mode, seed=seed, total_timesteps=total_timesteps, out=out, hyperparams=hyper,
-              progress_bar=False, env_id=env_id)
-    else:
-        from agents.training import train
-
-        train(algo, out, env_id, control_mode, seed, hyperparams=hyper, total_timesteps=total_timesteps)
+    train_run(algo, out, seed, env_id, control_mode, total_timesteps,
+              hyperparams=point_hyperparams(algo, env_id, control_mode, overrides))
     env = make_env(CONDITIONS[condition], control_mode, env_id)
     runs = episodes_of(env, SB3Policy(env, out), episodes, seed=1000)
     config = json.loads((out / "config.json").read_text())
@@ -134,10 +121,7 @@ def run_sweep(algo: str, env_id: str, control_mode: str, seeds: list[int], grid:
     out = Path(out).resolve()
     points = grid_points(grid)
     for point in points:  # bad names fail here, before any trial starts
-        unknown = sorted(set(point) - set(base_hyperparams(algo, env_id, control_mode)))
-        if unknown:
-            raise ValueError(f"--grid names {unknown} that {algo}'s YAML block for {env_id}/{control_mode} "
-                             f"does not have")
+        point_hyperparams(algo, env_id, control_mode, point)
     trials = [{"algo": algo, "env_id": env_id, "control_mode": control_mode, "seed": seed, "point": point,
                "out": str(out / "runs" / tag(point) / f"seed{seed}"), "condition": condition,
                "episodes": episodes, "total_timesteps": total_timesteps}

@@ -10,12 +10,13 @@ from __future__ import annotations
 
 import inspect
 from collections.abc import Mapping
+from typing import NamedTuple
 
 import numpy as np
 from gymnasium import spaces
 from gymnasium.vector import AutoresetMode
+from gymnasium.vector.utils import batch_space
 
-from scara_gym import ENV_VARIANTS
 from scara_gym.envs.core import DISTANCE_SCALE
 from scara_gym.envs.scara_env import ScaraEnv
 from scara_gym.envs.task import OBSERVATION_LAYOUT, OBSERVATION_NAMES
@@ -23,7 +24,6 @@ from scara_gym.envs.vector import ScaraVectorEnv
 from scara_gym.model import checks
 
 REWARD_TYPES = ("sparse", "dense")
-GOAL_TERMS = ("goal", "collision")
 GOAL_SLACK = 1e-6
 """[rad or m] added to acc in the goal test: covers the float32 rounding of the goals, so
 that the located C11 event (all |q_i - q^_i| < acc) always passes the test on the goals"""
@@ -52,6 +52,16 @@ def _costs(info, batch: int | None) -> np.ndarray | float:
     return float(cost) if batch is None and cost.ndim == 0 else cost
 
 
+class GoalOutcome(NamedTuple):
+    """What the goals and the info make of one step (or a batch of them)."""
+
+    terms: dict
+    """the named reward terms: goal and collision"""
+    reward: np.ndarray
+    success: np.ndarray
+    terminated: np.ndarray
+
+
 class GoalRules:
     """Reward, success and episode end of the goal task as functions of the goals (batched)."""
 
@@ -61,32 +71,41 @@ class GoalRules:
         self.threshold = accuracy + GOAL_SLACK
         self.terminate_on_collision = collision_mode == "terminate"
 
-    def success(self, achieved_goal, desired_goal) -> np.ndarray:
-        error = np.abs(np.asarray(achieved_goal, dtype=np.float64) - np.asarray(desired_goal, dtype=np.float64))
-        return error.max(axis=-1) < self.threshold
-
-    def terms(self, achieved_goal, desired_goal, info) -> dict:
+    def outcome(self, achieved_goal, desired_goal, info) -> GoalOutcome:
+        """Goals of shape (..., 3) give arrays of shape (...)."""
         achieved = np.asarray(achieved_goal, dtype=np.float64)
         desired = np.asarray(desired_goal, dtype=np.float64)
-        batch = None if achieved.ndim == 1 else achieved.shape[0]
+        cost = _costs(info, None if achieved.ndim == 1 else achieved.shape[0])
+        success = np.abs(achieved - desired).max(axis=-1) < self.threshold
         if self.reward_type == "sparse":
-            goal = -(~self.success(achieved, desired)).astype(np.float64)
+            goal = -(~success).astype(np.float64)
         else:
             goal = -np.linalg.norm((achieved - desired) / DISTANCE_SCALE, axis=-1)
-        collision = -self.collision_penalty * _costs(info, batch)
-        return {"goal": goal, "collision": collision}
+        terms = {"goal": goal, "collision": -self.collision_penalty * cost}
+        terminated = success | (np.asarray(cost) > 0) if self.terminate_on_collision else success
+        return GoalOutcome(terms, terms["goal"] + terms["collision"], success, terminated)
 
-    def reward(self, achieved_goal, desired_goal, info):
-        terms = self.terms(achieved_goal, desired_goal, info)
-        total = terms["goal"] + terms["collision"]
-        return float(total) if np.ndim(total) == 0 else total
 
-    def terminated(self, achieved_goal, desired_goal, info):
-        done = self.success(achieved_goal, desired_goal)
-        if self.terminate_on_collision:
-            batch = None if np.ndim(achieved_goal) == 1 else np.shape(achieved_goal)[0]
-            done = done | (np.asarray(_costs(info, batch)) > 0)
-        return bool(done) if np.ndim(done) == 0 else done
+def _scalar(value):
+    """A 0-d result as a Python scalar (one transition), arrays as they are (a batch)."""
+    return value.item() if np.ndim(value) == 0 else value
+
+
+class _GoalAPI:
+    """compute_reward, compute_terminated, compute_truncated from ``self.rules`` (batched)."""
+
+    rules: GoalRules
+
+    def compute_reward(self, achieved_goal, desired_goal, info):
+        """The step reward for (batches of) goals: shape (...,) for goals of shape (..., 3)."""
+        return _scalar(self.rules.outcome(achieved_goal, desired_goal, info).reward)
+
+    def compute_terminated(self, achieved_goal, desired_goal, info):
+        return _scalar(self.rules.outcome(achieved_goal, desired_goal, info).terminated)
+
+    def compute_truncated(self, achieved_goal, desired_goal, info):
+        """False for every transition: only the time limit truncates."""
+        return _scalar(np.zeros(np.shape(achieved_goal)[:-1], dtype=bool))
 
 
 def _goal_spaces(task) -> spaces.Dict:
@@ -99,7 +118,7 @@ def _goal_spaces(task) -> spaces.Dict:
     })
 
 
-class ScaraGoalEnv(ScaraEnv):
+class ScaraGoalEnv(_GoalAPI, ScaraEnv):
     """Scara-C11-Goal-v0: reach a goal configuration fast without hitting the wall (goal API).
 
     The C11 robot, wall and physics of Scara-C11-v1 with the Gymnasium-Robotics goal
@@ -227,33 +246,15 @@ class ScaraGoalEnv(ScaraEnv):
     def step(self, action):
         obs, _, _, _, info = super().step(action)
         goal_obs = self._goal_obs(obs)
-        achieved, desired = goal_obs["achieved_goal"], goal_obs["desired_goal"]
-        terms = self.rules.terms(achieved, desired, info)
-        info["reward_terms"] = {name: float(value) for name, value in terms.items()}
-        info["is_success"] = bool(self.rules.success(achieved, desired))
-        terminated = self.rules.terminated(achieved, desired, info)
+        outcome = self.rules.outcome(goal_obs["achieved_goal"], goal_obs["desired_goal"], info)
+        info["reward_terms"] = {name: float(value) for name, value in outcome.terms.items()}
+        info["is_success"] = bool(outcome.success)
+        terminated = bool(outcome.terminated)
         self._needs_reset = terminated
-        return goal_obs, self.rules.reward(achieved, desired, info), terminated, False, info
-
-    def compute_reward(self, achieved_goal, desired_goal, info):
-        """The step reward for (batches of) goals: shape (...,) for goals of shape (..., 3)."""
-        return self.rules.reward(achieved_goal, desired_goal, info)
-
-    def compute_terminated(self, achieved_goal, desired_goal, info):
-        return self.rules.terminated(achieved_goal, desired_goal, info)
-
-    def compute_truncated(self, achieved_goal, desired_goal, info):
-        """False for every transition: only the time limit truncates."""
-        shape = np.shape(achieved_goal)[:-1]
-        return False if shape == () else np.zeros(shape, dtype=bool)
+        return goal_obs, float(outcome.reward), terminated, False, info
 
 
-assert {k: v for k, v in ENV_VARIANTS[ScaraGoalEnv.env_id].items()} == {
-    name: inspect.signature(ScaraGoalEnv.__init__).parameters[name].default
-    for name in ENV_VARIANTS[ScaraGoalEnv.env_id]}, "the registered arguments are the class defaults"
-
-
-class ScaraGoalVectorEnv(ScaraVectorEnv):
+class ScaraGoalVectorEnv(_GoalAPI, ScaraVectorEnv):
     """N copies of Scara-C11-Goal-v0 stepped in parallel (ScaraVectorEnv's arguments plus
     reward_type and collision_penalty). Observations are a dict of batched arrays; with
     ``autoreset_mode="SameStep"`` ``info["final_obs"]`` is such a dict too (zero for the
@@ -268,7 +269,6 @@ class ScaraGoalVectorEnv(ScaraVectorEnv):
         self.rules = GoalRules(reward_type, collision_penalty, self.task.params.task.accuracy,
                                self.task.collision_mode)
         self.single_observation_space = _goal_spaces(self.task)
-        from gymnasium.vector.utils import batch_space
         self.observation_space = batch_space(self.single_observation_space, self.num_envs)
 
     def _agent_view(self, obs: np.ndarray) -> dict:
@@ -277,21 +277,9 @@ class ScaraGoalVectorEnv(ScaraVectorEnv):
                 "desired_goal": task.robot_params["target"].astype(np.float32)}
 
     def _judge(self, reward, terminated, info, resetting):
-        achieved = self.task.obs[:, Q]
-        desired = self.task.robot_params["target"].astype(np.float32)
-        terms = self.rules.terms(achieved, desired, info)
+        outcome = self.rules.outcome(self.task.obs[:, Q], self.task.robot_params["target"].astype(np.float32), info)
         stepped = ~resetting  # a robot reset in this step (NextStep) gets reward 0 and goes on
-        terms = {name: np.where(stepped, value, 0.0) for name, value in terms.items()}
+        terms = {name: np.where(stepped, value, 0.0) for name, value in outcome.terms.items()}
         info["reward_terms"] = terms
-        info["is_success"] = self.rules.success(achieved, desired) & stepped
-        terminated = self.rules.terminated(achieved, desired, info) & stepped
-        return terms["goal"] + terms["collision"], terminated, info
-
-    def compute_reward(self, achieved_goal, desired_goal, info):
-        return self.rules.reward(achieved_goal, desired_goal, info)
-
-    def compute_terminated(self, achieved_goal, desired_goal, info):
-        return self.rules.terminated(achieved_goal, desired_goal, info)
-
-    def compute_truncated(self, achieved_goal, desired_goal, info):
-        return np.zeros(np.shape(achieved_goal)[:-1], dtype=bool)
+        info["is_success"] = outcome.success & stepped
+        return terms["goal"] + terms["collision"], outcome.terminated & stepped, info

@@ -77,10 +77,6 @@ class SimToReal:
         """True where the applied action can differ from the given one (clipping aside)."""
         return self.action_delay > 0 or self.action_rate_limit is not None
 
-    @property
-    def active(self) -> bool:
-        return self.noisy or self.shapes_actions
-
 
 class Actuator:
     """The delay line and the slew-limited output of N robots (numpy, vectorized over robots)."""

@@ -134,6 +134,12 @@ def test_each_robot_of_the_goal_vector_env_is_the_single_env(autoreset_mode):
     assert ended >= n  # every robot reached its goal at least once
 
 
+def test_the_registered_arguments_are_the_class_defaults():
+    parameters = inspect.signature(ScaraGoalEnv.__init__).parameters
+    registered = scara_gym.ENV_VARIANTS[GOAL]
+    assert registered == {name: parameters[name].default for name in registered}
+
+
 def test_the_card_matches_the_spaces_and_arguments():
     doc = inspect.getdoc(ScaraGoalEnv)
     env = ScaraGoalEnv()
