@@ -6,7 +6,7 @@
 Policy specs: ``pd``; ``dec-continue[:d]`` and ``dec-restart[:d]`` (the seed's heuristic
 with trigger distance d [m]); ``ppo:NAME`` (a shipped model, e.g. ``ppo_pd``) or
 ``ppo:DIR`` (a model saved by agents.train); ``sb3:DIR`` (any run of agents.training:
-PPO, SAC, TD3); ``optimal`` (the minimum-time reference of agents.optimal, "voltage" mode,
+PPO, SAC, TD3); ``torchppo:DIR`` (a run of agents.torch_ppo); ``optimal`` (the minimum-time reference of agents.optimal, "voltage" mode,
 best on ``--env-id Scara-C11-v1``, the physics it was verified on). Writes, under ``--out`` only: ``table.md``,
 ``table.csv``, ``tip_paths.png``, ``wall_and_height.png``, ``NAME_results.json`` for each
 PPO model (the format of a shipped model's ``results.json``) and, for PPO models with
@@ -47,11 +47,16 @@ def make_policy(spec: str, env):
         if not arg:
             raise ValueError("sb3 policies are given as sb3:RUN_DIR (a folder written by agents.training)")
         return SB3Policy(env, arg)
+    if kind == "torchppo":
+        from agents.torch_ppo import TorchPPOPolicy
+        if not arg:
+            raise ValueError("torch PPO policies are given as torchppo:RUN_DIR (a folder written by agents.torch_ppo)")
+        return TorchPPOPolicy(env, arg)
     if kind == "optimal":
         from agents.optimal import OptimalPolicy
         return OptimalPolicy(env)
     raise ValueError(f"unknown policy {spec!r}; use pd, dec-continue[:d], dec-restart[:d], optimal, "
-                     "ppo:NAME_OR_DIR or sb3:RUN_DIR")
+                     "ppo:NAME_OR_DIR, sb3:RUN_DIR or torchppo:RUN_DIR")
 
 
 def evaluate(policies: list[str], control_mode: str = "pd", randomize_target: bool = False,

@@ -52,7 +52,7 @@ for _env_id, _kwargs in ENV_KWARGS.items():
         # 300 steps of the default 0.01 s control step: the 3 s time limit
         register(id=_env_id, entry_point=_ENTRY_POINTS.get(_env_id, "scara_gym.envs:ScaraEnv"),
                  max_episode_steps=300,
-                 vector_entry_point=_VECTOR_ENTRY_POINTS.get(_env_id, "scara_gym.envs.vector:ScaraVectorEnv"),
+                 vector_entry_point=_VECTOR_ENTRY_POINTS.get(_env_id, "scara_gym.envs.vector:make_vector_env"),
                  kwargs=dict(_kwargs))
 
 __all__ = [

@@ -232,6 +232,90 @@ def bench_memory(n: int) -> tuple[float, float]:
     return env_peak / 2**20, process_peak / 2**20
 
 
+GPU_SIZES = (4096, 65536, 262144, 1048576)
+
+
+def gpu_available() -> str | None:
+    """None when a CUDA GPU can run the CUDA backend, else why not (in words)."""
+    try:
+        from scara_gym.envs.cuda_vector import load_backend
+        load_backend()
+    except (ImportError, RuntimeError) as error:
+        return str(error)
+    import numba
+    if numba.config.ENABLE_CUDASIM:
+        return "NUMBA_ENABLE_CUDASIM=1: the simulator is not timed"
+    return None
+
+
+def bench_gpu(sizes=GPU_SIZES, steps: int = 50, env_id: str = "Scara-C11-v1") -> list[dict]:
+    """Robot-steps/s of the CUDA vector env (random voltage actions drawn on the GPU) per N, and
+    the largest |q| difference to the CPU vector env after `steps` steps of the same actions
+    (on the first 256 robots)."""
+    import gymnasium as gym
+    import numpy as np
+    import torch
+
+    rows = []
+    for n in sizes:
+        gpu = gym.make_vec(env_id, num_envs=n, vectorization_mode="vector_entry_point", device="cuda",
+                           control_mode="voltage", collision="penalty")
+        generator = torch.Generator(device="cuda").manual_seed(0)
+        gpu.reset(seed=0)
+        actions = [torch.rand((n, 3), generator=generator, device="cuda", dtype=torch.float64) * 2 - 1
+                   for _ in range(steps)]
+        gpu.step(actions[0])  # compiles the kernels (cached on disk after the first run)
+        gpu.reset(seed=0)
+        torch.cuda.synchronize()
+        started = time.perf_counter()
+        for action in actions:
+            gpu.step(action)
+        torch.cuda.synchronize()
+        rate = n * steps / (time.perf_counter() - started)
+        compared = min(n, 256)
+        cpu = gym.make_vec(env_id, num_envs=compared, vectorization_mode="vector_entry_point",
+                           control_mode="voltage", collision="penalty")
+        cpu.reset(seed=0)
+        for action in actions:
+            cpu.step(action[:compared].cpu().numpy())
+        q_gpu = gpu.unwrapped.d_robots.copy_to_host()["x"][:compared, :3]
+        q_cpu = cpu.unwrapped.task.robots["x"][:, :3]
+        rows.append({"n": n, "rate": rate, "q_difference": float(np.abs(q_gpu - q_cpu).max())})
+        gpu.close(), cpu.close()
+    return rows
+
+
+def bench_ppo(device: str = "cpu", num_envs: int = 16, num_steps: int = 128, total_timesteps: int = 32768,
+              sb3: bool = True) -> dict:
+    """End-to-end training steps/s of agents.torch_ppo and, with sb3, of stable-baselines3's PPO with
+    equal batch settings (num_envs x num_steps per rollout, minibatches of 64, 10 epochs, the same
+    env id and arguments, VecNormalize for SB3 as the torch PPO normalizes), each timed over its
+    learning loop."""
+    import tempfile
+
+    from agents.torch_ppo import Config, train
+
+    minibatches = max(1, num_envs * num_steps // 64)
+    with tempfile.TemporaryDirectory() as out:
+        config = Config(device=device, num_envs=num_envs, num_steps=num_steps, num_minibatches=minibatches,
+                        update_epochs=10, total_timesteps=total_timesteps, checkpoint_every=10**9, out=out)
+        figures = {"torch_ppo": train(config)["steps_per_second"]}
+    if sb3:
+        from stable_baselines3 import PPO
+        from stable_baselines3.common.vec_env import VecNormalize
+
+        from scara_gym import ENV_KWARGS
+        from scara_gym.integrations.sb3 import SB3VecEnv
+
+        env = VecNormalize(SB3VecEnv(num_envs=num_envs, num_threads=1, **ENV_KWARGS[config.env_id]),
+                           gamma=config.gamma)
+        model = PPO("MlpPolicy", env, n_steps=num_steps, batch_size=64, n_epochs=10, seed=0, device="cpu")
+        started = time.perf_counter()
+        model.learn(total_timesteps)
+        figures["sb3_ppo"] = total_timesteps / (time.perf_counter() - started)
+    return figures
+
+
 def main(quick: bool = False, stream=sys.stdout) -> str:
     repeats = 2 if quick else 7
     chunks = []
@@ -276,5 +360,31 @@ def main(quick: bool = False, stream=sys.stdout) -> str:
                   f"(Python, numpy, scipy, numba, LLVM)\n"
                   f"Start, import + gym.make + reset + first step in a fresh process: "
                   f"cold (empty JIT cache) {cold:.1f} s, warm (cached) {warm:.2f} s")
+    print(chunks[-1] + "\n", file=stream, flush=True)
+
+    try:
+        import torch  # noqa: F401
+        figures = bench_ppo(total_timesteps=4096 if quick else 32768)
+        chunks.append(f"PPO training on the CPU ({torch.get_num_threads()} torch threads, 16 envs x 128 steps, "
+                      f"minibatches of 64, 10 epochs, Scara-C11-v1): agents.torch_ppo "
+                      f"{figures['torch_ppo']:,.0f} steps/s, stable-baselines3 PPO {figures['sb3_ppo']:,.0f} "
+                      f"steps/s, ratio {figures['torch_ppo'] / figures['sb3_ppo']:.2f}")
+    except ImportError as error:
+        chunks.append(f"PPO training: skipped ({error}; pip install 'scara_gym[train]')")
+    print(chunks[-1] + "\n", file=stream, flush=True)
+
+    why_not = gpu_available()
+    if why_not is not None:
+        chunks.append(f"GPU: skipped: {why_not}")
+    else:
+        rows = bench_gpu(GPU_SIZES[:2] if quick else GPU_SIZES, 10 if quick else 50)
+        lines = ["CUDA vector environment (device='cuda', random voltage actions, Scara-C11-v1):",
+                 "| N | robot-steps/s | largest |q| difference to the CPU env after the steps |", "|---|---|---|"]
+        lines += [f"| {row['n']:,} | {row['rate']:,.0f} | {row['q_difference']:.1e} |" for row in rows]
+        gpu_ppo = bench_ppo(device="cuda", num_envs=4096, num_steps=32, total_timesteps=4096 * 32 * (2 if quick else 8),
+                            sb3=False)
+        lines.append(f"\nPPO on the GPU (agents.torch_ppo, 4,096 envs x 32 steps, everything on the device): "
+                     f"{gpu_ppo['torch_ppo']:,.0f} steps/s end to end")
+        chunks.append("\n".join(lines))
     print(chunks[-1], file=stream, flush=True)
     return "\n\n".join(chunks)

@@ -23,7 +23,8 @@ from numba import njit, prange
 
 from scara_gym.model.compilation import JIT
 from scara_gym.model.dynamics import applied_voltages, pd_voltage, tip_position, voltage_limit
-from scara_gym.model.integrator import initial_modes, integrate
+from scara_gym.model.integrator import initial_modes, integrate_with, new_workspace
+from scara_gym.model import records as R
 from scara_gym.model.records import (
     CURRENT, ENERGY, F8, I8, Q, RATE, STATUS_BAD_ACTION, field_offset,
 )
@@ -49,7 +50,7 @@ TASK = np.dtype([
     ("setpoint_center", F8, 3),  # "pd" set-point = center + half * action [rad, rad, m]
     ("setpoint_half", F8, 3),
     ("obs_low", F4, N_OBS), ("obs_high", F4, N_OBS),
-])
+], align=True)  # aligned fields, as numba-cuda needs
 
 OUTCOME = np.dtype([
     ("reward", F8),
@@ -63,7 +64,7 @@ OUTCOME = np.dtype([
     ("tip", F8, 2),              # tip x, y after the step [m]
     ("clipped", I8),             # action components clipped to [-1, 1]
     ("episode_steps", I8), ("episode_collisions", I8),
-])
+], align=True)
 
 # the progress term measures the target error in these units [rad, rad, m]
 DISTANCE_SCALE = np.array([1.0, 1.0, 0.1])
@@ -103,15 +104,16 @@ def observe(robot, p, task, out):
 
 
 @njit(**JIT)
-def control_step(robot, p, config, task, log, outcome):
-    """Advance one robot by one control step (or to its stop event) under its command."""
+def control_step(robot, p, config, task, log, outcome, workspace):
+    """Advance one robot by one control step (or to its stop event) under its command, in the
+    integrator's work arrays (``integrator.new_workspace``)."""
     x = robot.x
     t = robot.t
     distance_before = outcome.distance
     robot.n_events = robot.n_collisions = 0
     robot.reach_time = math.nan
     energy_before = x[ENERGY]
-    status = integrate(robot, p, config, t + task.control_dt, log, None)
+    status = integrate_with(robot, p, config, t + task.control_dt, log, None, workspace)
     t_new = robot.t
     collisions = robot.n_collisions  # counted by the integrator: a full event log loses none
     reach_time = robot.reach_time
@@ -164,7 +166,20 @@ def start_episode(robot, p, config, task, outcome, obs):
 
 
 @njit(**JIT)
-def robot_step(action, robot, p, config, task, log, outcome, obs):
+def begin_episode(robot, p, config, task, outcome, obs, start, target):
+    """A new episode: the robot at rest at ``start`` with target q^ = ``target`` (written into
+    its parameters ``p``; in "pd" mode also its first command), then start_episode."""
+    for i in range(robot.x.shape[0]):
+        robot.x[i] = 0.0
+    for i in range(3):
+        robot.x[Q + i] = start[i]
+        p.target[i] = target[i]
+        robot.command[i] = target[i] if task.pd else 0.0
+    start_episode(robot, p, config, task, outcome, obs)
+
+
+@njit(**JIT)
+def robot_step(action, robot, p, config, task, log, outcome, obs, workspace):
     """One environment step of one robot: the action checked, clipped and mapped to the
     command, control_step, then the observation. Returns the status; STATUS_BAD_ACTION
     (with nothing changed) when the action is not finite.
@@ -179,7 +194,7 @@ def robot_step(action, robot, p, config, task, log, outcome, obs):
             clipped += 1
             a = min(max(a, -1.0), 1.0)
         robot.command[i] = task.setpoint_center[i] + task.setpoint_half[i] * a if task.pd else a
-    status = control_step(robot, p, config, task, log, outcome)
+    status = control_step(robot, p, config, task, log, outcome, workspace)
     outcome.clipped = clipped
     observe(robot, p, task, obs)
     return status
@@ -208,8 +223,14 @@ def start_robot(i, robots, params, config, task, outcomes, obs):
 
 
 @njit(**JIT)
+def begin_robot(i, start, target, robots, params, config, task, outcomes, obs):
+    begin_episode(robots[i], params[i], config[0], task[0], outcomes[i], obs[i], start, target)
+
+
+@njit(**JIT)
 def step_robot(i, action, robots, params, config, task, log, outcomes, obs):
-    return robot_step(action, robots[i], params[i], config[0], task[0], log[i], outcomes[i], obs[i])
+    return robot_step(action, robots[i], params[i], config[0], task[0], log[i], outcomes[i], obs[i],
+                      new_workspace())
 
 
 @njit(cache=True, nogil=True, parallel=True)
@@ -217,7 +238,8 @@ def step_robots(active, actions, robots, params, config, task, log, outcomes, ob
     """robot_step for every active robot, in parallel (actions already checked finite)."""
     for i in prange(robots.shape[0]):
         if active[i]:
-            robot_step(actions[i], robots[i], params[i], config[0], task[0], log[i], outcomes[i], obs[i])
+            robot_step(actions[i], robots[i], params[i], config[0], task[0], log[i], outcomes[i], obs[i],
+                       new_workspace())
 
 
 # the single environment's info, packed by compiled code into one float vector (reading
@@ -243,3 +265,64 @@ def pack_info(i, robots, params, outcomes, out):
         out[16 + axis] = outcome.voltage[axis]
         out[19 + axis] = p.target[axis]
     return out
+
+
+# -- the batched step of the GPU backend (scara_gym.envs.cuda): one robot per thread --------
+# Episode plans: each robot's coming episodes (start, target and, with randomized physics,
+# parameters) wait in a ring of PLAN slots, drawn on the host from the robot's own generator
+# in the order the CPU vector env draws them; episode e >= 1 of robot i sits in slot e % K.
+PLAN_START, PLAN_TARGET = 0, 3  # offsets into a plan's 6 floats
+N_PARAMS_FLOATS = R.PARAMS.itemsize // 8  # a PARAMS record read as float64 (all its fields are)
+STATUS_NO_PLAN = -5  # a robot had to reset and its ring held no plan (the host refills in time)
+
+
+@njit(**JIT)
+def next_episode(i, robots, params, params_flat, config, task, outcomes, obs, plans, plan_params, varied_params,
+                 plans_made, episodes):
+    """Robot i begins its next episode from its plan ring; False when the ring holds none."""
+    episode = episodes[i] + 1
+    if episode > plans_made[i]:
+        return False
+    slot = episode % plans.shape[1]
+    episodes[i] = episode
+    if varied_params:  # randomized physics: the plan's own parameters
+        for j in range(N_PARAMS_FLOATS):
+            params_flat[i, j] = plan_params[i, slot, j]
+    begin_episode(robots[i], params[i], config[0], task[0], outcomes[i], obs[i], plans[i, slot, PLAN_START:],
+                  plans[i, slot, PLAN_TARGET:])
+    return True
+
+
+@njit(**JIT)
+def vector_robot_step(i, same_step, max_episode_steps, terminate_collisions, actions, robots, params, params_flat,
+                      config, task, log, outcomes, obs, prev_done, plans, plan_params, varied_params, plans_made,
+                      episodes, reward, terminated, truncated, final_obs, info, workspace):
+    """Robot i's part of one vector env step, as ScaraVectorEnv does it: with NextStep
+    autoreset a robot whose episode ended in the last step begins its next one (reward 0,
+    neither flag) instead of stepping; with SameStep an ending step's observation goes to
+    final_obs and the robot begins its next episode at once. Writes reward, the flags and
+    the packed info (INFO_FIELDS, before a SameStep reset); returns the status."""
+    status = 0
+    if not same_step and prev_done[i]:
+        if not next_episode(i, robots, params, params_flat, config, task, outcomes, obs, plans, plan_params,
+                            varied_params, plans_made, episodes):
+            status = STATUS_NO_PLAN
+    else:
+        status = robot_step(actions[i], robots[i], params[i], config[0], task[0], log[i], outcomes[i], obs[i],
+                            workspace)
+    outcome = outcomes[i]
+    ended = outcome.reached or (terminate_collisions and outcome.collisions > 0)
+    cut = outcome.episode_steps >= max_episode_steps
+    reward[i] = outcome.reward
+    terminated[i] = ended
+    truncated[i] = cut
+    pack_info(i, robots, params, outcomes, info[i])
+    done = ended or cut
+    if same_step and done:
+        for j in range(obs.shape[1]):
+            final_obs[i, j] = obs[i, j]
+        if not next_episode(i, robots, params, params_flat, config, task, outcomes, obs, plans, plan_params,
+                            varied_params, plans_made, episodes) and status >= 0:
+            status = STATUS_NO_PLAN
+    prev_done[i] = done
+    return status

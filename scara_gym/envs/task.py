@@ -23,7 +23,7 @@ from typing import NamedTuple
 import numpy as np
 
 from scara_gym.envs.core import (
-    N_INFO, N_OBS, OBSERVATION, OUTCOME, REWARD_TERMS, TASK, pack_info, pd_actions, start_robot, step_robot,
+    N_INFO, N_OBS, OBSERVATION, OUTCOME, REWARD_TERMS, TASK, begin_robot, pack_info, pd_actions, step_robot,
     step_robots,  # noqa: F401
 )
 from scara_gym.model import records as R
@@ -108,6 +108,18 @@ def check_actions(action, shape: tuple[int, ...]) -> np.ndarray:
         return checks.real_array("action", action, shape, range_text="values in [-1, 1] (beyond: clipped)")
     except TypeError as error:  # one exception type for every bad action
         raise ValueError(str(error)) from None
+
+
+def vector_seeds(seed, num_envs: int) -> list[int | None]:
+    """A vector env's reset seed per robot: None, an integer s (robot i gets s + i) or a list of
+    num_envs integers or None."""
+    text = f"seed must be None, an integer >= 0 or a list of {num_envs} such seeds or None"
+    if seed is None or checks.is_real(seed) or isinstance(seed, (bool, np.bool_)):
+        first = checks.seed("seed", seed)
+        return [None if first is None else first + i for i in range(num_envs)]
+    if not isinstance(seed, (list, tuple, np.ndarray)) or len(seed) != num_envs:
+        raise ValueError(f"{text}, got {seed!r}")
+    return [checks.seed(f"seed[{i}]", s) for i, s in enumerate(seed)]
 
 
 def draw_target(rng: np.random.Generator, start: np.ndarray, params: ScaraParams, obstacle: bool) -> np.ndarray:
@@ -317,14 +329,9 @@ class ScaraTask:
         if plan.params is not self.episode_params[i]:
             self.robot_params[i] = self.nominal_record if plan.params is self.params else plan.params.to_record()
             self.episode_params[i] = plan.params
-        self.robot_params["target"][i] = target
-        robot = self.robots[i]
-        robot["x"] = 0.0
-        robot["x"][R.Q:R.Q + 3] = start
-        robot["command"] = target if self.control_mode == "pd" else 0.0
         if self.actuator is not None:  # before the episode the robot rests: the neutral action
             self.actuator.reset(i, self.setpoint_to_action(start) if self.control_mode == "pd" else np.zeros(3))
-        start_robot(i, self.robots, self.robot_params, self.config, self.task, self.outcomes, self.obs)
+        begin_robot(i, start, target, self.robots, self.robot_params, self.config, self.task, self.outcomes, self.obs)
 
     # -- steps ---------------------------------------------------------------------------
     def step_robot(self, i: int, action: np.ndarray) -> None:

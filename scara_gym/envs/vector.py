@@ -21,8 +21,19 @@ from gymnasium.utils import seeding
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
-from scara_gym.envs.task import RESET_OPTIONS, ScaraTask, check_actions
+from scara_gym.envs.task import RESET_OPTIONS, ScaraTask, check_actions, vector_seeds
 from scara_gym.model import checks
+
+
+def check_autoreset_mode(autoreset_mode) -> AutoresetMode:
+    """"NextStep" or "SameStep" (Gymnasium's names or enum members); "Disabled" is refused."""
+    try:
+        autoreset_mode = AutoresetMode(autoreset_mode)
+    except ValueError:
+        raise ValueError(f"autoreset_mode must be 'NextStep' or 'SameStep', got {autoreset_mode!r}") from None
+    if autoreset_mode == AutoresetMode.DISABLED:
+        raise ValueError("autoreset_mode must be 'NextStep' or 'SameStep', got 'Disabled'")
+    return autoreset_mode
 
 
 class ScaraVectorEnv(VectorEnv):
@@ -52,12 +63,7 @@ class ScaraVectorEnv(VectorEnv):
         if isinstance(max_episode_steps, bool) or not isinstance(max_episode_steps, (int, np.integer)) \
                 or max_episode_steps < 1:
             raise ValueError(f"max_episode_steps must be an integer >= 1, got {max_episode_steps!r}")
-        try:
-            autoreset_mode = AutoresetMode(autoreset_mode)
-        except ValueError:
-            raise ValueError(f"autoreset_mode must be 'NextStep' or 'SameStep', got {autoreset_mode!r}") from None
-        if autoreset_mode == AutoresetMode.DISABLED:
-            raise ValueError("autoreset_mode must be 'NextStep' or 'SameStep', got 'Disabled'")
+        autoreset_mode = check_autoreset_mode(autoreset_mode)
         available = numba.config.NUMBA_NUM_THREADS
         if num_threads is None:
             num_threads = available
@@ -91,7 +97,7 @@ class ScaraVectorEnv(VectorEnv):
 
     # -- episodes ----------------------------------------------------------------------
     def reset(self, *, seed: int | list[int | None] | None = None, options: dict | None = None):
-        seeds = self._seeds(seed)
+        seeds = vector_seeds(seed, self.num_envs)
         options = checks.mapping("reset options", options, RESET_OPTIONS)
         # every robot's start, target and parameters are checked before any robot changes
         rngs = [self._rngs[i] if s is None else seeding.np_random(s)[0] for i, s in enumerate(seeds)]
@@ -107,15 +113,6 @@ class ScaraVectorEnv(VectorEnv):
             info["params"] = {path: np.array([plan.varied.get(path, np.nan) for plan in plans])
                               for path in varied}
         return self._agent_view(self.task.observations(self._rngs)), info
-
-    def _seeds(self, seed) -> list[int | None]:
-        text = f"seed must be None, an integer >= 0 or a list of {self.num_envs} such seeds or None"
-        if seed is None or checks.is_real(seed) or isinstance(seed, (bool, np.bool_)):
-            first = checks.seed("seed", seed)
-            return [None if first is None else first + i for i in range(self.num_envs)]
-        if not isinstance(seed, (list, tuple, np.ndarray)) or len(seed) != self.num_envs:
-            raise ValueError(f"{text}, got {seed!r}")
-        return [checks.seed(f"seed[{i}]", s) for i, s in enumerate(seed)]
 
     # -- stepping ----------------------------------------------------------------------
     def step(self, actions):
@@ -163,3 +160,17 @@ def _masked(obs, done: np.ndarray):
     if isinstance(obs, dict):
         return {key: _masked(value, done) for key, value in obs.items()}
     return np.where(done[:, None], obs, 0).astype(obs.dtype)
+
+
+DEVICES = ("cpu", "cuda")
+
+
+def make_vector_env(num_envs: int = 1, device: str = "cpu", **kwargs) -> VectorEnv:
+    """The vector entry point of the registered ids: ``device="cpu"`` (default) gives
+    :class:`ScaraVectorEnv`, ``device="cuda"`` the GPU backend
+    (:class:`scara_gym.envs.cuda_vector.ScaraCudaVectorEnv`), with the same arguments."""
+    device = checks.choice("device", device, DEVICES)
+    if device == "cuda":
+        from scara_gym.envs.cuda_vector import ScaraCudaVectorEnv
+        return ScaraCudaVectorEnv(num_envs=num_envs, **kwargs)
+    return ScaraVectorEnv(num_envs=num_envs, **kwargs)

@@ -97,9 +97,36 @@ def solve_linear(a, b):
 
 @njit(**JIT)
 def accelerations_implicit(q2, v1, v2, t1, t2, t3, p):
-    """q'' from M q'' = b by a linear solve (implicit form)."""
-    acc = solve_linear(mass_matrix(q2, p), bias_vector(q2, v1, v2, t1, t2, t3, p))
-    return acc[0], acc[1], acc[2]
+    """q'' from M q'' = b by a linear solve (implicit form): solve_linear(mass_matrix, bias_vector)
+    written out on scalars, every operation of the elimination kept (those on M's zero entries
+    too), so that it gives the same bits and allocates nothing (a GPU device function)."""
+    c = math.cos(q2)
+    s = math.sin(q2)
+    a00, a01, a02 = p.theta1 + 2.0 * p.theta2 * c + p.theta3, p.theta2 * c + p.theta3, 0.0
+    a10, a11, a12 = a01, p.theta3, 0.0
+    a20, a21, a22 = 0.0, 0.0, p.vertical_mass
+    x0 = t1 + p.theta2 * (2.0 * v1 * v2 + v2 * v2) * s
+    x1 = t2 - p.theta2 * v1 * v1 * s
+    x2 = t3 - p.load_mass * p.gravity
+    if abs(a10) > abs(a00):  # partial pivoting; row 2 (a20 = 0) never wins column 0
+        a00, a01, a02, a10, a11, a12 = a10, a11, a12, a00, a01, a02
+        x0, x1 = x1, x0
+    factor = a10 / a00
+    a10, a11, a12 = a10 - factor * a00, a11 - factor * a01, a12 - factor * a02
+    x1 -= factor * x0
+    factor = a20 / a00
+    a20, a21, a22 = a20 - factor * a00, a21 - factor * a01, a22 - factor * a02
+    x2 -= factor * x0
+    if abs(a21) > abs(a11):
+        a11, a12, a21, a22 = a21, a22, a11, a12
+        x1, x2 = x2, x1
+    factor = a21 / a11
+    a21, a22 = a21 - factor * a11, a22 - factor * a12
+    x2 -= factor * x1
+    x2 = x2 / a22
+    x1 = (x1 - a12 * x2) / a11
+    x0 = ((x0 - a01 * x1) - a02 * x2) / a00
+    return x0, x1, x2
 
 
 @njit(**JIT)

@@ -103,7 +103,8 @@ def event_values(x, robot, p, config, volts, g):
             mode = robot.saturation[axis]
             g[E_SAT1 + axis] = (limit - abs(u)) if mode == 0 else (mode * u - limit)
     else:
-        g[E_SAT1:E_SAT1 + 3] = 1.0  # no saturation modes: they never switch
+        for axis in range(3):  # no saturation modes: they never switch
+            g[E_SAT1 + axis] = 1.0
     return g
 
 
@@ -540,6 +541,18 @@ def record(t, x, robot, p, config, volts, samples):
         robot.n_samples = n + 1
 
 
+WORK_SHAPE = (18, N_STATE)       # float64: stages, stage and trial states, scales, dense coefficients
+SMALL_SHAPE = (9, N_EVENTS)      # float64: event values, voltages, brackets
+STACK_SHAPE = (STACK_DEPTH, 7)   # float64: the in-step searches' intervals
+
+
+@njit(**JIT)
+def new_workspace():
+    """The fixed-size work arrays of integrate_with (on a GPU: local arrays of these shapes)."""
+    return (np.empty(WORK_SHAPE), np.empty(SMALL_SHAPE), np.empty(STACK_SHAPE),
+            np.zeros(N_EVENTS, dtype=np.bool_))
+
+
 @njit(**JIT)
 def integrate(robot, p, config, t_end, log, samples):
     """Advance the robot (in place) from robot.t to t_end or to the first stop event.
@@ -549,8 +562,15 @@ def integrate(robot, p, config, t_end, log, samples):
     a SAMPLE array, or None to record nothing. Returns the status; robot.t is the time
     reached.
     """
+    return integrate_with(robot, p, config, t_end, log, samples, new_workspace())
+
+
+@njit(**JIT)
+def integrate_with(robot, p, config, t_end, log, samples, workspace):
+    """integrate() in the given work arrays (new_workspace): it allocates nothing and assigns
+    no slices, so that numba-cuda compiles it as a device function."""
     n = N_STATE
-    work = np.empty((18, n))  # the allocations of a call (it runs once per control step), all fixed-size
+    work, small, stack, triggered = workspace
     k = work[:7]
     y_new = work[7]
     y_stage = work[8]
@@ -560,15 +580,12 @@ def integrate(robot, p, config, t_end, log, samples):
     coeffs = work[12:16]
     reach = work[16]
     bend = work[17]
-    small = np.empty((9, N_EVENTS))
     g_old = small[0]
     g_new = small[1]
     g_try = small[2]
     volts = small[3, :3]
     brackets = small[4:8]  # per event: lo, hi, g(lo), g(hi) in theta
     bracket = small[8, :4]  # the searches' result
-    stack = np.empty((STACK_DEPTH, 7))
-    triggered = np.zeros(N_EVENTS, dtype=np.bool_)
     x = robot.x
     rtol, atol = config.rtol, config.atol
 
@@ -647,9 +664,11 @@ def integrate(robot, p, config, t_end, log, samples):
                     brackets[0, e], brackets[1, e], brackets[2, e], brackets[3, e] = 0.0, 1.0, g_old[e], g_new[e]
         if not any_event:
             t = t_end if last else t + h_step
-            x[:] = y_new
-            k[0, :] = k[6, :]
-            g_old[:] = g_new
+            for i in range(n):
+                x[i] = y_new[i]
+                k[0, i] = k[6, i]
+            for e in range(N_EVENTS):
+                g_old[e] = g_new[e]
             h = max(h, h_step * factor) if last else h_step * factor
             if samples is not None:
                 record(t, x, robot, p, config, volts, samples)
@@ -683,12 +702,14 @@ def integrate(robot, p, config, t_end, log, samples):
                     side = 1
             theta_first = min(theta_first, hi)
         if theta_first >= 1.0:
-            x_event[:] = y_new
+            for i in range(n):
+                x_event[i] = y_new[i]
         else:
             dense_output(x, h_step, k, theta_first, x_event)
         event_values(x_event, robot, p, config, volts, g_try)
         t = t_end if (last and theta_first >= 1.0) else t + theta_first * h_step
-        x[:] = x_event
+        for i in range(n):
+            x[i] = x_event[i]
         stop = False
         for e in range(N_EVENTS):
             if triggered[e] and g_try[e] < 0.0:

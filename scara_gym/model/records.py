@@ -66,7 +66,7 @@ CONFIG = np.dtype([
     ("max_steps", I8),      # accepted + rejected step budget of one call
     ("rtol", F8), ("atol", F8),  # error tolerances, scipy's meaning
     ("exact_switches", B1),  # the PD saturation a located mode, every switch searched inside steps
-])
+], align=True)  # aligned fields: numba-cuda loads only aligned ones
 
 ROBOT = np.dtype([
     ("x", F8, N_STATE),     # state vector, laid out as STATE

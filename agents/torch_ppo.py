@@ -1,0 +1,350 @@
+"""PPO in one file, CleanRL style: torch only, no stable-baselines3 in its loop.
+
+It trains on the native vector env, on the CPU (numpy arrays in, torch tensors made once per
+step) or on its CUDA backend (``--device cuda``: the env, the rollout buffer, the network and
+the updates all stay on the GPU). Read top to bottom: the config, the running normalizers,
+the agent, the rollout and the update.
+
+    python -m agents.torch_ppo --env-id Scara-C11-v1 --total-timesteps 2000000 --out runs/torch_ppo
+    python -m agents.torch_ppo --device cuda --num-envs 4096 --num-steps 32 --out runs/torch_ppo_gpu
+    python -m agents.evaluate --policies torchppo:runs/torch_ppo --env-id Scara-C11-v1
+
+A run folder holds ``config.json``, ``model.pt`` (the policy and its observation normalizer,
+what ``TorchPPOPolicy`` loads), ``checkpoint.pt`` (everything to resume: ``--resume``) and
+TensorBoard logs under ``tb/``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import json
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+import gymnasium as gym
+import numpy as np
+import torch
+from torch import nn
+
+import scara_gym  # noqa: F401  (registers the ids)
+
+
+@dataclass
+class Config:
+    env_id: str = "Scara-C11-v1"
+    control_mode: str = "pd"
+    randomize_target: bool = False
+    device: str = "cpu"            # where the env runs and the agent trains: "cpu" or "cuda"
+    seed: int = 0
+    num_envs: int = 16
+    num_steps: int = 128           # rollout length per env; a batch is num_envs * num_steps
+    total_timesteps: int = 1_000_000
+    learning_rate: float = 3e-4
+    anneal_lr: bool = True
+    gamma: float = 0.99
+    gae_lambda: float = 0.95
+    num_minibatches: int = 32
+    update_epochs: int = 10
+    clip_coef: float = 0.2
+    ent_coef: float = 0.0
+    vf_coef: float = 0.5
+    max_grad_norm: float = 0.5
+    hidden_size: int = 64
+    normalize_reward: bool = True  # scale rewards by the running std of the discounted return
+    clip_obs: float = 10.0
+    env_threads: int = 1           # numba threads of the CPU env (torch takes the cores between steps)
+    torch_threads: int = 0         # 0: torch's default
+    checkpoint_every: int = 10     # updates between checkpoints
+    out: str = "runs/torch_ppo"
+
+    @property
+    def batch_size(self) -> int:
+        return self.num_envs * self.num_steps
+
+    @property
+    def minibatch_size(self) -> int:
+        return self.batch_size // self.num_minibatches
+
+
+LOG_SQRT_2PI = 0.5 * float(np.log(2 * np.pi))
+
+
+class RunningMeanStd(nn.Module):
+    """Running mean and variance (parallel algorithm), kept as buffers so they save with the model."""
+
+    def __init__(self, shape=()) -> None:
+        super().__init__()
+        self.register_buffer("mean", torch.zeros(shape, dtype=torch.float64))
+        self.register_buffer("var", torch.ones(shape, dtype=torch.float64))
+        self.register_buffer("count", torch.tensor(1e-4, dtype=torch.float64))
+
+    def update(self, x: torch.Tensor) -> None:
+        x = x.to(torch.float64)
+        batch_mean, batch_var, batch_count = x.mean(0), x.var(0, unbiased=False), x.shape[0]
+        delta = batch_mean - self.mean
+        total = self.count + batch_count
+        self.mean += delta * batch_count / total
+        self.var.copy_((self.var * self.count + batch_var * batch_count
+                        + delta ** 2 * self.count * batch_count / total) / total)
+        self.count.copy_(total)
+
+
+class Agent(nn.Module):
+    """Actor and critic: two tanh MLPs of the same shape on normalized observations, evaluated as
+    one batched MLP (``torch.baddbmm`` on weights stacked [actor, critic]), which halves the
+    small tensor operations that bound PPO's speed on a CPU; a state-independent log std."""
+
+    def __init__(self, obs_size: int, action_size: int, hidden: int, clip_obs: float) -> None:
+        super().__init__()
+        self.obs_rms = RunningMeanStd((obs_size,))
+        self.clip_obs = clip_obs
+        sizes = [obs_size, hidden, hidden, action_size]  # the critic reads column 0 of the last layer
+        self.weights, self.biases = nn.ParameterList(), nn.ParameterList()
+        for k, (fan_in, fan_out) in enumerate(zip(sizes[:-1], sizes[1:])):
+            last = k == len(sizes) - 2
+            weight = torch.empty(2, fan_in, fan_out)
+            for head, gain in enumerate((0.01, 1.0) if last else (np.sqrt(2), np.sqrt(2))):
+                weight[head] = nn.init.orthogonal_(torch.empty(fan_out, fan_in), gain).T
+            self.weights.append(nn.Parameter(weight))
+            self.biases.append(nn.Parameter(torch.zeros(2, 1, fan_out)))
+        self.actor_logstd = nn.Parameter(torch.zeros(action_size))
+
+    def normalize(self, obs: torch.Tensor) -> torch.Tensor:
+        x = (obs.to(torch.float64) - self.obs_rms.mean) / torch.sqrt(self.obs_rms.var + 1e-8)
+        return x.clamp(-self.clip_obs, self.clip_obs).to(torch.float32)
+
+    def heads(self, x: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        """(action mean, value) of normalized observations x."""
+        h = x.expand(2, *x.shape)
+        for k, (weight, bias) in enumerate(zip(self.weights, self.biases)):
+            h = torch.baddbmm(bias, h, weight)
+            if k < len(self.weights) - 1:
+                h = torch.tanh(h)
+        return h[0], h[1, :, 0]
+
+    def value(self, x: torch.Tensor) -> torch.Tensor:
+        return self.heads(x)[1]
+
+    def act(self, x: torch.Tensor, action: torch.Tensor | None = None):
+        """(action, log prob, entropy, value) of normalized observations x: the diagonal Gaussian
+        written out (torch.distributions costs more than these few small tensors)."""
+        mean, value = self.heads(x)
+        log_std = self.actor_logstd.expand_as(mean)
+        std = log_std.exp()
+        if action is None:
+            action = mean + std * torch.randn_like(mean)
+        log_prob = (-0.5 * ((action - mean) / std) ** 2 - log_std - LOG_SQRT_2PI).sum(-1)
+        entropy = (log_std + 0.5 + LOG_SQRT_2PI).sum(-1)
+        return action, log_prob, entropy, value
+
+
+def make_env(config: Config):
+    return gym.make_vec(config.env_id, num_envs=config.num_envs, vectorization_mode="vector_entry_point",
+                        autoreset_mode="SameStep", control_mode=config.control_mode,
+                        randomize_target=config.randomize_target, device=config.device,
+                        **({"num_threads": config.env_threads} if config.device == "cpu" else {}))
+
+
+def tensor(x, device) -> torch.Tensor:
+    """A step output as a tensor on the device (the CUDA env's are already)."""
+    return x if isinstance(x, torch.Tensor) else torch.from_numpy(np.asarray(x)).to(device)
+
+
+def train(config: Config, resume: bool = False) -> dict:
+    """Train, checkpointing every config.checkpoint_every updates; returns the run's summary."""
+    from torch.utils.tensorboard import SummaryWriter
+
+    out = Path(config.out)
+    out.mkdir(parents=True, exist_ok=True)
+    if config.torch_threads:
+        torch.set_num_threads(config.torch_threads)
+    torch.manual_seed(config.seed)
+    device = torch.device(config.device)
+    envs = make_env(config)
+    # the CUDA env on numba's simulator returns CPU tensors: train where its tensors are
+    device = getattr(envs.unwrapped, "device", device)
+    obs_size, action_size = envs.single_observation_space.shape[0], envs.single_action_space.shape[0]
+    agent = Agent(obs_size, action_size, config.hidden_size, config.clip_obs).to(device)
+    optimizer = torch.optim.Adam(agent.parameters(), lr=config.learning_rate, eps=1e-5, fused=True)
+    return_rms = RunningMeanStd().to(device)
+    num_updates = max(1, config.total_timesteps // config.batch_size)
+    start_update, global_step, train_seconds = 1, 0, 0.0
+    checkpoint = out / "checkpoint.pt"
+    if resume and checkpoint.exists():
+        state = torch.load(checkpoint, map_location=device, weights_only=False)
+        agent.load_state_dict(state["agent"])
+        optimizer.load_state_dict(state["optimizer"])
+        return_rms.load_state_dict(state["return_rms"])
+        start_update, global_step, train_seconds = state["update"] + 1, state["global_step"], state["train_seconds"]
+    (out / "config.json").write_text(json.dumps(dataclasses.asdict(config), indent=2))
+    writer = SummaryWriter(str(out / "tb"))
+
+    n, steps = config.num_envs, config.num_steps
+    obs_buf = torch.zeros((steps, n, obs_size), device=device)
+    actions_buf = torch.zeros((steps, n, action_size), device=device)
+    logprobs, rewards, dones, values = (torch.zeros((steps, n), device=device) for _ in range(4))
+    discounted = torch.zeros(n, dtype=torch.float64, device=device)  # the return the reward scale tracks
+    episode_return = torch.zeros(n, dtype=torch.float64, device=device)
+    finished = {"return": [], "success": [], "collision": []}
+
+    obs, _ = envs.reset(seed=config.seed + 1000 * (start_update - 1))  # resumed runs start new episodes
+    obs = tensor(obs, device)
+    done = torch.zeros(n, device=device)
+    started = time.perf_counter()
+    for update in range(start_update, num_updates + 1):
+        if config.anneal_lr:
+            optimizer.param_groups[0]["lr"] = config.learning_rate * (1.0 - (update - 1.0) / num_updates)
+        # -- rollout ---------------------------------------------------------------------
+        for step in range(steps):
+            global_step += n
+            with torch.no_grad():
+                agent.obs_rms.update(obs)
+                x = agent.normalize(obs)
+                action, logprob, _, value = agent.act(x)
+            obs_buf[step], actions_buf[step], logprobs[step], values[step], dones[step] = x, action, logprob, value, done
+            clipped = action.clamp(-1.0, 1.0)
+            next_obs, reward, terminated, truncated, info = envs.step(
+                clipped if config.device == "cuda" else clipped.numpy())
+            reward = tensor(reward, device)
+            terminated, truncated = tensor(terminated, device), tensor(truncated, device)
+            episode_return += reward
+            if config.normalize_reward:
+                discounted = discounted * config.gamma + reward  # zeroed where an episode ends
+                return_rms.update(discounted)
+                reward = reward / torch.sqrt(return_rms.var + 1e-8)
+            reward = reward.to(torch.float32)
+            if bool(truncated.any()):  # bootstrap a time limit with the value of the final observation
+                final = tensor(info["final_obs"], device)
+                with torch.no_grad():
+                    final_value = agent.value(agent.normalize(final))
+                reward = torch.where(truncated & ~terminated, reward + config.gamma * final_value, reward)
+            rewards[step] = reward
+            ended = terminated | truncated
+            if bool(ended.any()):
+                rows = ended.nonzero().squeeze(-1)
+                finished["return"] += episode_return[rows].tolist()
+                finished["success"] += tensor(info["is_success"], device)[rows].tolist()
+                finished["collision"] += (tensor(info["collisions"], device)[rows] > 0).tolist()
+                episode_return[rows] = 0.0
+                discounted[rows] = 0.0
+            obs, done = tensor(next_obs, device), ended.to(torch.float32)
+
+        # -- advantages (GAE) ------------------------------------------------------------
+        with torch.no_grad():
+            next_value = agent.value(agent.normalize(obs))
+            advantages = torch.zeros_like(rewards)
+            last = torch.zeros(n, device=device)
+            for t in reversed(range(steps)):
+                next_nonterminal = 1.0 - (done if t == steps - 1 else dones[t + 1])
+                following = next_value if t == steps - 1 else values[t + 1]
+                delta = rewards[t] + config.gamma * following * next_nonterminal - values[t]
+                last = delta + config.gamma * config.gae_lambda * next_nonterminal * last
+                advantages[t] = last
+            returns = advantages + values
+
+        # -- update ----------------------------------------------------------------------
+        b_obs, b_actions = obs_buf.reshape(-1, obs_size), actions_buf.reshape(-1, action_size)
+        b_logprobs, b_advantages = logprobs.reshape(-1), advantages.reshape(-1)
+        b_returns = returns.reshape(-1)
+        clip_fractions = []
+        for _ in range(config.update_epochs):
+            order = torch.randperm(config.batch_size, device=device)
+            for begin in range(0, config.batch_size, config.minibatch_size):
+                mb = order[begin:begin + config.minibatch_size]
+                _, new_logprob, entropy, new_value = agent.act(b_obs[mb], b_actions[mb])
+                ratio = (new_logprob - b_logprobs[mb]).exp()
+                mb_adv = b_advantages[mb]
+                mb_adv = (mb_adv - mb_adv.mean()) / (mb_adv.std() + 1e-8)
+                policy_loss = torch.max(-mb_adv * ratio,
+                                        -mb_adv * ratio.clamp(1 - config.clip_coef, 1 + config.clip_coef)).mean()
+                value_loss = 0.5 * ((new_value - b_returns[mb]) ** 2).mean()
+                loss = policy_loss - config.ent_coef * entropy.mean() + config.vf_coef * value_loss
+                optimizer.zero_grad()
+                loss.backward()
+                nn.utils.clip_grad_norm_(agent.parameters(), config.max_grad_norm, foreach=True)
+                optimizer.step()
+                clip_fractions.append(((ratio - 1.0).abs() > config.clip_coef).float().mean())
+
+        # -- logs and checkpoints ------------------------------------------------------------
+        elapsed = train_seconds + time.perf_counter() - started
+        writer.add_scalar("charts/steps_per_second", (global_step - (start_update - 1) * config.batch_size)
+                          / max(time.perf_counter() - started, 1e-9), global_step)
+        writer.add_scalar("losses/policy", policy_loss.item(), global_step)
+        writer.add_scalar("losses/value", value_loss.item(), global_step)
+        writer.add_scalar("losses/clip_fraction", torch.stack(clip_fractions).mean().item(), global_step)
+        if finished["return"]:
+            writer.add_scalar("charts/episode_return", float(np.mean(finished["return"])), global_step)
+            writer.add_scalar("charts/success_rate", float(np.mean(finished["success"])), global_step)
+            writer.add_scalar("charts/collision_rate", float(np.mean(finished["collision"])), global_step)
+        if update % config.checkpoint_every == 0 or update == num_updates:
+            save(agent, out)
+            torch.save({"agent": agent.state_dict(), "optimizer": optimizer.state_dict(),
+                        "return_rms": return_rms.state_dict(), "update": update, "global_step": global_step,
+                        "train_seconds": elapsed}, checkpoint)
+            recent = {k: v[-100:] for k, v in finished.items()}
+            print(f"update {update}/{num_updates}  steps {global_step}  "
+                  f"success {np.mean(recent['success']) if recent['success'] else float('nan'):.2f}  "
+                  f"{global_step / max(elapsed, 1e-9):.0f} steps/s", flush=True)
+    writer.close()
+    envs.close()
+    elapsed = train_seconds + time.perf_counter() - started
+    summary = {"global_step": global_step, "train_seconds": elapsed,
+               "steps_per_second": (global_step - (start_update - 1) * config.batch_size)
+               / max(time.perf_counter() - started, 1e-9)}
+    (out / "summary.json").write_text(json.dumps(summary, indent=2))
+    return summary
+
+
+def save(agent: Agent, out: Path) -> None:
+    """model.pt: what TorchPPOPolicy needs (weights with the normalizer, sizes)."""
+    torch.save({"state_dict": {k: v.cpu() for k, v in agent.state_dict().items()},
+                "obs_size": agent.obs_rms.mean.shape[0], "action_size": agent.actor_logstd.shape[0],
+                "hidden_size": agent.weights[0].shape[-1], "clip_obs": agent.clip_obs}, out / "model.pt")
+
+
+class TorchPPOPolicy:
+    """A run of this file as an obs -> action policy (the mean action) for agents.evaluate."""
+
+    def __init__(self, env, run_dir: str | Path) -> None:
+        run_dir = Path(run_dir)
+        if not (run_dir / "model.pt").exists():
+            raise FileNotFoundError(f"no model.pt in {str(run_dir)!r}: give a folder written by agents.torch_ppo")
+        config = json.loads((run_dir / "config.json").read_text())
+        unwrapped = env.unwrapped if hasattr(env, "unwrapped") else env
+        if config["control_mode"] != unwrapped.control_mode:
+            raise ValueError(f"{run_dir} was trained in {config['control_mode']!r} mode, "
+                             f"the environment is in {unwrapped.control_mode!r} mode")
+        saved = torch.load(run_dir / "model.pt", map_location="cpu", weights_only=False)
+        self.agent = Agent(saved["obs_size"], saved["action_size"], saved["hidden_size"], saved["clip_obs"])
+        self.agent.load_state_dict(saved["state_dict"])
+        self.agent.eval()
+        self.name = f"torch-ppo ({run_dir.name})"
+
+    def reset(self) -> None:
+        pass
+
+    def __call__(self, obs: np.ndarray) -> np.ndarray:
+        with torch.no_grad():
+            x = self.agent.normalize(torch.as_tensor(np.asarray(obs))[None])
+            return self.agent.heads(x)[0][0].clamp(-1.0, 1.0).numpy().astype(np.float64)
+
+
+def main(argv: list[str] | None = None) -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    for field in dataclasses.fields(Config):
+        flag = "--" + field.name.replace("_", "-")
+        if field.type in ("bool", bool):
+            parser.add_argument(flag, action=argparse.BooleanOptionalAction, default=field.default)
+        else:
+            kind = {"int": int, "float": float, "str": str}[str(field.type)]
+            parser.add_argument(flag, type=kind, default=field.default)
+    parser.add_argument("--resume", action="store_true", help="continue from OUT/checkpoint.pt")
+    args = vars(parser.parse_args(argv))
+    resume = args.pop("resume")
+    print(json.dumps(train(Config(**args), resume=resume), indent=2))
+
+
+if __name__ == "__main__":
+    main()

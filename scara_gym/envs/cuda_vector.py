@@ -1,0 +1,309 @@
+"""The CUDA backend of the native vector environment: N robots stepped on the GPU.
+
+``gym.make_vec("Scara-C11-v1", num_envs=N, vectorization_mode="vector_entry_point",
+device="cuda")``. One thread per robot runs the same compiled step as the CPU vector env
+(:mod:`scara_gym.envs.cuda_kernels`); observations, rewards, flags and info stay on the
+GPU as torch tensors, and torch CUDA tensors are accepted as actions.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from gymnasium import spaces
+from gymnasium.utils import seeding
+from gymnasium.vector import AutoresetMode, VectorEnv
+from gymnasium.vector.utils import batch_space
+
+from scara_gym.envs.core import INFO_FIELDS, N_PARAMS_FLOATS, REWARD_TERMS, STATUS_NO_PLAN
+from scara_gym.envs.task import RESET_OPTIONS, ScaraTask, check_actions, vector_seeds
+from scara_gym.envs.vector import check_autoreset_mode
+from scara_gym.model import checks
+from scara_gym.model import records as R
+from scara_gym.model.simulator import SimulationError, failure_message
+
+CUDA_EXTRA = 'pip install "scara_gym[cuda]"'
+GPU_EVENT_LOG_SIZE = 1  # the env reads no event log (collisions and reach times are counted), so keep it small
+# the packed info's columns after the reward terms (which come first, in REWARD_TERMS order)
+INFO_INDEX = {name: k for k, name in enumerate(INFO_FIELDS) if k >= len(REWARD_TERMS)}
+SIM_TO_REAL = ("observation_noise", "action_delay", "action_rate_limit")
+FIXED_PLANS = 2**62  # "plans made" of a task whose every episode starts alike: its one plan never runs out
+
+
+def load_backend():
+    """(torch, numba.cuda, the kernels module), or an ImportError/RuntimeError that names what is
+    missing: numba-cuda, torch, or a GPU with its driver (``NUMBA_ENABLE_CUDASIM=1`` runs the
+    backend on numba's CUDA simulator instead)."""
+    try:
+        import torch
+    except ImportError:
+        raise ImportError(f"device='cuda' returns torch tensors and needs torch: {CUDA_EXTRA} "
+                          "(with torch for your CUDA version, see pytorch.org)") from None
+    try:
+        import numba
+        from numba import cuda
+    except ImportError:
+        raise ImportError(f"device='cuda' needs numba-cuda: {CUDA_EXTRA}") from None
+    if not numba.config.ENABLE_CUDASIM:
+        try:
+            available = cuda.is_available()
+        except Exception as error:  # a broken driver or toolkit: say which
+            raise RuntimeError(f"device='cuda': numba-cuda cannot use the GPU ({error}); {CUDA_EXTRA} "
+                               "installs the CUDA toolkit libraries numba-cuda needs") from None
+        if not available:
+            raise RuntimeError(
+                "device='cuda': no CUDA GPU was found (numba.cuda.is_available() is False: no NVIDIA "
+                f"GPU, driver or CUDA libraries; {CUDA_EXTRA} installs the libraries). Use device='cpu', "
+                "or set NUMBA_ENABLE_CUDASIM=1 to run the CUDA backend on numba's simulator (slow, for tests)")
+    from scara_gym.envs import cuda_kernels
+    return torch, cuda, cuda_kernels
+
+
+class ScaraCudaVectorEnv(VectorEnv):
+    """N copies of a Scara-C11 environment stepped on a CUDA GPU, one thread per robot.
+
+    The arguments are those of :class:`~scara_gym.envs.vector.ScaraVectorEnv` (num_envs,
+    max_episode_steps, autoreset_mode and the environment's own), plus:
+
+    | argument | meaning | default |
+    |---|---|---|
+    | plan_depth | episodes drawn ahead per robot (start, target, parameters) | 8 |
+    | threads_per_block | CUDA block size of the step kernel | 128 |
+
+    Sub-environment i is the CPU vector env's sub-environment i, bit for bit on numba's CUDA
+    simulator (a GPU's fused multiply-adds differ from the CPU's rounding in the last bits).
+    ``reset`` and ``step`` return torch tensors on the GPU (on the simulator: on the CPU),
+    with the CPU env's dtypes: observations float32, rewards float64, flags bool; info holds
+    the same keys as the CPU env's, as tensors. Actions may be a torch tensor (on any
+    device) or a numpy array of shape (num_envs, 3).
+
+    Episodes: each robot's coming episodes are drawn on the host from its own generator, in
+    the order the CPU env draws them, ``plan_depth`` ahead, and begin on the GPU when the
+    previous one ends (autoreset). The host refills a robot's plans when they run low; a task
+    whose episodes all start alike (no randomized target or parameters) needs none.
+
+    Not supported here (a ValueError says so): the sim-to-real options (observation_noise,
+    action_delay, action_rate_limit), rendering, and the goal-conditioned id.
+    """
+
+    metadata = {"autoreset_mode": AutoresetMode.NEXT_STEP, "render_modes": []}
+
+    def __init__(self, num_envs: int = 1, max_episode_steps: int = 300,
+                 autoreset_mode: str | AutoresetMode = AutoresetMode.NEXT_STEP,
+                 plan_depth: int = 8, threads_per_block: int = 128, **kwargs) -> None:
+        torch, cuda, kernels = load_backend()
+        self._torch, self._cuda, self._kernels = torch, cuda, kernels
+        self.simulator = kernels.SIMULATOR
+        num_envs = checks.integer("num_envs", num_envs, 1, 2**24)
+        self.max_episode_steps = checks.integer("max_episode_steps", max_episode_steps, 1, 2**62)
+        autoreset_mode = check_autoreset_mode(autoreset_mode)
+        self.plan_depth = checks.integer("plan_depth", plan_depth, 2, 1024)
+        self.threads_per_block = checks.integer("threads_per_block", threads_per_block, 1, 1024)
+        if kwargs.get("render_mode") is not None:
+            raise ValueError("the vector environment does not render; use render_mode=None")
+        for name in SIM_TO_REAL:
+            if kwargs.get(name) not in (None, 0, {}):
+                raise ValueError(f"{name} is not supported by the CUDA backend (device='cuda') yet; "
+                                 "use device='cpu' for the sim-to-real options")
+        self.task = task = ScaraTask(num_robots=num_envs, **kwargs)
+        self.num_envs = n = num_envs
+        self.metadata = {**type(self).metadata, "autoreset_mode": autoreset_mode}
+        self.autoreset_mode = autoreset_mode
+        self.render_mode = None
+        self.control_dt = task.control_dt
+        self.device = torch.device("cpu" if self.simulator else "cuda")
+        self.single_action_space = spaces.Box(-1.0, 1.0, shape=(3,), dtype=np.float32)
+        self.single_observation_space = spaces.Box(task.obs_low, task.obs_high, dtype=np.float32)
+        self.action_space = batch_space(self.single_action_space, n)
+        self.observation_space = batch_space(self.single_observation_space, n)
+        self._rngs: list[np.random.Generator] = [seeding.np_random(None)[0] for _ in range(n)]
+        self.fixed_plans = not (task.randomize_target or task.randomization)
+        depth = 1 if self.fixed_plans else self.plan_depth
+
+        # device records: the task's constants, then every robot's state and results
+        to_device = cuda.to_device
+        self.d_config, self.d_task = to_device(task.config), to_device(task.task)
+        self.d_robots = to_device(task.robots)
+        self.d_params = to_device(task.robot_params)
+        self.d_params_flat = self._flat_view(self.d_params)
+        self.d_log = cuda.device_array((n, GPU_EVENT_LOG_SIZE), dtype=R.EVENT)
+        self.d_outcomes = to_device(task.outcomes)
+        self.d_obs = to_device(task.obs)
+        self.d_final_obs = cuda.device_array_like(task.obs)
+        self.d_prev_done = to_device(np.zeros(n, dtype=np.bool_))
+        self.d_reward = cuda.device_array(n, dtype=np.float64)
+        self.d_terminated = cuda.device_array(n, dtype=np.bool_)
+        self.d_truncated = cuda.device_array(n, dtype=np.bool_)
+        self.d_info = cuda.device_array((n, len(INFO_FIELDS)), dtype=np.float64)
+        self.d_flags = cuda.device_array(kernels.N_FLAGS, dtype=np.int64)
+        self.d_status = cuda.device_array(n, dtype=np.int64)
+        # episode plans: ring of `depth` per robot, episode e >= 1 in slot e % depth
+        self.plans = np.zeros((n, depth, 6))
+        self.plan_params = np.zeros((n, depth if task.randomization else 1, N_PARAMS_FLOATS))
+        self.plans_made = np.zeros(n, dtype=np.int64)
+        self.d_plans = to_device(self.plans)
+        self.d_plan_params = to_device(self.plan_params)
+        self.d_plans_made = to_device(self.plans_made)
+        self.d_episodes = to_device(np.zeros(n, dtype=np.int64))
+        self._blocks = (n + self.threads_per_block - 1) // self.threads_per_block
+        self._started = False
+
+    def _flat_view(self, d_params):
+        """The PARAMS records as float64 rows, the same memory (every field of PARAMS is float64)."""
+        if self.simulator:
+            from numba.cuda.simulator.cudadrv.devicearray import FakeCUDAArray
+            return FakeCUDAArray(d_params._ary.view(np.float64).reshape(d_params.shape[0], N_PARAMS_FLOATS))
+        return d_params.view(np.float64).reshape(d_params.shape[0], N_PARAMS_FLOATS)
+
+    # -- tensors -------------------------------------------------------------------------
+    def _tensor(self, d_array):
+        """A torch tensor of a device array: a view on the GPU, a host copy on the simulator."""
+        torch = self._torch
+        if self.simulator:
+            return torch.from_numpy(np.ascontiguousarray(d_array.copy_to_host()))
+        return torch.as_tensor(d_array, device=self.device)
+
+    def _device_actions(self, actions):
+        """Checked float64 actions on the device (finite, shape (num_envs, 3))."""
+        torch = self._torch
+        shape = (self.num_envs, 3)
+        if isinstance(actions, torch.Tensor):
+            if actions.is_complex() or actions.dtype == torch.bool:
+                raise ValueError(f"action must hold real numbers, got a tensor of {actions.dtype}")
+            if tuple(actions.shape) != shape:
+                raise ValueError(f"action must have shape {shape}, got {tuple(actions.shape)}")
+            if not self.simulator and actions.device.type == "cuda":
+                actions = actions.to(device=self.device, dtype=torch.float64).contiguous()
+                if not bool(torch.isfinite(actions).all()):
+                    check_actions(actions.cpu().numpy(), shape)  # raises naming the value
+                return self._cuda.as_cuda_array(actions.detach())
+            actions = actions.detach().cpu().numpy()
+        return self._cuda.to_device(check_actions(actions, shape))
+
+    # -- episodes ------------------------------------------------------------------------
+    def reset(self, *, seed: int | list[int | None] | None = None, options: dict | None = None):
+        seeds = vector_seeds(seed, self.num_envs)
+        options = checks.mapping("reset options", options, RESET_OPTIONS)
+        rngs = [self._rngs[i] if s is None else seeding.np_random(s)[0] for i, s in enumerate(seeds)]
+        plans = [self.task.episode_start(rng, options) for rng in rngs]  # all checked before any change
+        self._rngs = rngs
+        task = self.task
+        for i, plan in enumerate(plans):
+            if plan.params is not task.episode_params[i]:
+                task.robot_params[i] = task.nominal_record if plan.params is task.params else plan.params.to_record()
+                task.episode_params[i] = plan.params
+        starts = np.array([plan.start for plan in plans])
+        targets = np.array([plan.target for plan in plans])
+        self.d_params.copy_to_device(task.robot_params)
+        self._kernels.begin_kernel[self._blocks, self.threads_per_block](
+            self._cuda.to_device(starts), self._cuda.to_device(targets), self.d_robots, self.d_params,
+            self.d_config, self.d_task, self.d_outcomes, self.d_obs)
+        self.d_prev_done.copy_to_device(np.zeros(self.num_envs, dtype=np.bool_))
+        self.d_episodes.copy_to_device(np.zeros(self.num_envs, dtype=np.int64))
+        if self.fixed_plans:
+            self.plans[:, 0, :3], self.plans[:, 0, 3:] = task.default_start, task.default_target
+            self.plans_made[:] = FIXED_PLANS
+        else:
+            self.plans_made[:] = 0
+            self._refill(np.arange(self.num_envs), np.zeros(self.num_envs, dtype=np.int64))
+        self._upload_plans()
+        self._started = True
+        info = {"target": self._torch.from_numpy(targets).to(self.device)}
+        varied = sorted({path for plan in plans for path in plan.varied})
+        if varied:
+            info["params"] = {path: self._torch.tensor([plan.varied.get(path, np.nan) for plan in plans],
+                                                       dtype=self._torch.float64, device=self.device)
+                              for path in varied}
+        return self._tensor(self.d_obs).clone(), info
+
+    def _refill(self, rows: np.ndarray, episodes: np.ndarray) -> None:
+        """Draw plans for robots `rows` (at episodes `episodes`) until each holds plan_depth - 1 ahead."""
+        depth = self.plans.shape[1]
+        task = self.task
+        for i, episode in zip(rows, episodes[rows]):
+            while self.plans_made[i] < episode + depth - 1:
+                e = self.plans_made[i] + 1
+                plan = task.episode_start(self._rngs[i], None)
+                self.plans[i, e % depth, :3], self.plans[i, e % depth, 3:] = plan.start, plan.target
+                if task.randomization:
+                    record = task.nominal_record if plan.params is task.params else plan.params.to_record()
+                    self.plan_params[i, e % depth] = np.array([record], dtype=R.PARAMS).view(np.float64)
+                self.plans_made[i] = e
+
+    def _upload_plans(self) -> None:
+        self.d_plans.copy_to_device(self.plans)
+        self.d_plan_params.copy_to_device(self.plan_params)
+        self.d_plans_made.copy_to_device(self.plans_made)
+
+    # -- stepping ------------------------------------------------------------------------
+    def step(self, actions):
+        if not self._started:
+            raise RuntimeError("call reset() before step()")
+        torch, kernels = self._torch, self._kernels
+        d_actions = self._device_actions(actions)
+        self.d_flags.copy_to_device(np.array([0, self.num_envs, FIXED_PLANS], dtype=np.int64))
+        same_step = self.autoreset_mode == AutoresetMode.SAME_STEP
+        kernels.step_kernel[self._blocks, self.threads_per_block](
+            same_step, self.max_episode_steps, self.task.collision_mode == "terminate", d_actions, self.d_robots,
+            self.d_params, self.d_params_flat, self.d_config, self.d_task, self.d_log, self.d_outcomes, self.d_obs,
+            self.d_prev_done, self.d_plans, self.d_plan_params, bool(self.task.randomization), self.d_plans_made,
+            self.d_episodes, self.d_reward, self.d_terminated, self.d_truncated, self.d_final_obs, self.d_info,
+            self.d_status, self.d_flags)
+        failures, first_failed, plans_left = self.d_flags.copy_to_host()  # the one synchronizing copy
+        if failures:
+            self._raise_for(int(first_failed), d_actions)
+        if not self.fixed_plans and plans_left <= self.plans.shape[1] // 2:
+            episodes = self.d_episodes.copy_to_host()
+            low = np.flatnonzero(self.plans_made - episodes <= self.plans.shape[1] // 2)
+            self._refill(low, episodes)
+            self._upload_plans()
+
+        obs = self._tensor(self.d_obs).clone()
+        reward = self._tensor(self.d_reward).clone()
+        terminated = self._tensor(self.d_terminated).clone()
+        truncated = self._tensor(self.d_truncated).clone()
+        info = self._info(self._tensor(self.d_info))
+        if same_step:
+            done = terminated | truncated
+            if bool(done.any()):
+                final = self._tensor(self.d_final_obs)
+                info["final_obs"] = torch.where(done[:, None], final, torch.zeros_like(final))
+                info["_final_obs"] = done
+                info["final_info"] = {k: v for k, v in info.items() if not k.startswith("final")}
+                info["_final_info"] = done
+        return obs, reward, terminated, truncated, info
+
+    def _info(self, packed) -> dict:
+        """The CPU vector env's info entries from the packed info rows (INFO_FIELDS)."""
+        torch = self._torch
+        column = {name: packed[:, k] for name, k in INFO_INDEX.items()}
+        reached = column["reached"] != 0.0
+        collided = column["collisions"] > 0.0
+        return {
+            "reward_terms": {term: packed[:, k].clone() for k, term in enumerate(REWARD_TERMS)},
+            "is_success": reached,
+            "cost": collided.to(torch.float64),
+            "collision": collided,
+            "collisions": column["episode_collisions"].to(torch.int64),
+            "critical": column["critical"] == 1.0,
+            "time": column["time"].clone(),
+            "energy": column["energy"].clone(),
+            "clipped_actions": column["clipped"].to(torch.int64),
+            "reach_time": torch.where(reached, column["reach_time"], torch.full_like(column["reach_time"], np.nan)),
+            "_reach_time": reached,
+        }
+
+    def _raise_for(self, i: int, d_actions) -> None:
+        robot = self.d_robots[i:i + 1].copy_to_host()[0]
+        status = int(self.d_status[i:i + 1].copy_to_host()[0])
+        if status == R.STATUS_BAD_ACTION:
+            check_actions(d_actions[i:i + 1].copy_to_host()[0], (3,))
+        if status == STATUS_NO_PLAN:
+            raise RuntimeError(f"sub-environment {i} ran out of episode plans (a bug: the host refills them)")
+        raise SimulationError(f"sub-environment {i}: "
+                              + failure_message(status, robot, self.task.config[0], self.task.params))
+
+    # -- host views (copies), for tests and inspection -----------------------------------
+    @property
+    def targets(self) -> np.ndarray:
+        """The robots' targets q^ [rad, rad, m], shape (num_envs, 3) (a host copy)."""
+        return self.d_params.copy_to_host()["target"]

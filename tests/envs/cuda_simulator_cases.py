@@ -1,0 +1,128 @@
+"""The CUDA vector env against the CPU vector env, run under numba's CUDA simulator.
+
+Not collected on its own (no ``test_`` prefix): tests/envs/test_cuda_vector.py runs this file
+in a pytest subprocess with ``NUMBA_ENABLE_CUDASIM=1``, which numba reads at import. Under the
+simulator the kernels call the same CPU-compiled functions, so everything is bit for bit.
+"""
+
+import numba
+import numpy as np
+import pytest
+import torch
+
+import gymnasium as gym
+
+import scara_gym  # noqa: F401
+from scara_gym.envs.cuda_vector import ScaraCudaVectorEnv
+
+pytestmark = pytest.mark.skipif(not numba.config.ENABLE_CUDASIM, reason="needs NUMBA_ENABLE_CUDASIM=1")
+
+CONFIGS = {
+    # collisions (terminating) and successes, random targets drawn ahead in plan rings
+    "pd-random": dict(control_mode="pd", randomize_target=True),
+    # successes without the wall
+    "pd-free": dict(control_mode="pd", obstacle=False),
+    # truncations: a short time limit, collisions as penalties
+    "voltage": dict(control_mode="voltage", collision="penalty", max_episode_steps=40),
+    # parameters drawn per episode (plans carry parameter records), on v1's exact switches
+    "physics": dict(control_mode="pd", randomize_params="physics", randomize_target=True, exact_switches=True,
+                    rtol=1e-6, atol=1e-8),
+}
+
+
+def pair(name, autoreset_mode, n=4, **extra):
+    kwargs = dict(CONFIGS[name], **extra)
+    make = lambda **device: gym.make_vec("Scara-C11-v0", num_envs=n, vectorization_mode="vector_entry_point",  # noqa: E731
+                                         autoreset_mode=autoreset_mode, **device, **kwargs)
+    return make(), make(device="cuda")
+
+
+def actions_for(name, rng, n):
+    if CONFIGS[name]["control_mode"] == "pd":  # head for the target with kicks: successes and collisions
+        kicks = rng.random((n, 1)) < 0.05
+        return np.array([2 / np.pi, 2 / np.pi, 0.5]) + rng.normal(0.0, 0.5, (n, 3)) * kicks
+    return rng.uniform(-1.2, 1.2, (n, 3))
+
+
+def assert_same(cpu_value, gpu_value, where):
+    if isinstance(cpu_value, dict):
+        assert set(cpu_value) == set(gpu_value), where
+        for key in cpu_value:
+            assert_same(cpu_value[key], gpu_value[key], f"{where}[{key}]")
+        return
+    assert isinstance(gpu_value, torch.Tensor), f"{where}: {type(gpu_value)} is not a tensor"
+    gpu = gpu_value.numpy()
+    cpu = np.asarray(cpu_value)
+    assert gpu.dtype == cpu.dtype, f"{where}: dtype {gpu.dtype} != {cpu.dtype}"
+    assert np.array_equal(cpu, gpu, equal_nan=cpu.dtype.kind == "f"), f"{where}: {cpu} != {gpu}"
+
+
+@pytest.mark.parametrize("autoreset_mode", ["NextStep", "SameStep"])
+@pytest.mark.parametrize("name", CONFIGS)
+def test_the_cuda_env_is_the_cpu_env_bit_for_bit(name, autoreset_mode):
+    n, steps = 4, 200
+    cpu, gpu = pair(name, autoreset_mode, n)
+    assert isinstance(gpu, ScaraCudaVectorEnv)
+    obs_cpu, info_cpu = cpu.reset(seed=5)
+    obs_gpu, info_gpu = gpu.reset(seed=5)
+    assert_same(obs_cpu, obs_gpu, "reset obs")
+    assert_same(info_cpu, info_gpu, "reset info")
+    rng = np.random.default_rng(1)
+    counts = dict(successes=0, collisions=0, truncations=0)
+    for k in range(steps):
+        actions = actions_for(name, rng, n)
+        given = torch.from_numpy(actions) if k % 2 else actions  # tensors and arrays alike
+        cpu_out, gpu_out = cpu.step(actions), gpu.step(given)
+        for label, c, g in zip(("obs", "reward", "terminated", "truncated", "info"), cpu_out, gpu_out):
+            assert_same(c, g, f"step {k} {label}")
+        info = cpu_out[4]
+        counts["successes"] += int(info["is_success"].sum())
+        counts["collisions"] += int(info["collision"].sum())
+        counts["truncations"] += int(cpu_out[3].sum())
+    # the episodes ended the ways the config is there for
+    expected = {"pd-random": "collisions", "pd-free": "successes", "voltage": "truncations",
+                "physics": "collisions"}[name]
+    assert counts[expected] > 0, counts
+    assert np.array_equal(cpu.unwrapped.targets, gpu.unwrapped.targets)
+
+
+def test_a_rejected_action_changes_nothing_and_reset_options_hold_for_one_episode():
+    cpu, gpu = pair("pd-free", "NextStep", n=2)
+    target = np.array([1.0, -1.0, 0.2])
+    for env in (cpu, gpu):
+        env.reset(seed=0, options={"target": target})
+    bad = np.zeros((2, 3))
+    bad[1, 2] = np.nan
+    with pytest.raises(ValueError, match="action"):
+        gpu.step(torch.from_numpy(bad))
+    with pytest.raises(ValueError, match="shape"):
+        gpu.step(np.zeros((3, 3)))
+    with pytest.raises(ValueError, match="real numbers"):
+        gpu.step(torch.zeros((2, 3), dtype=torch.complex64))
+    assert np.array_equal(gpu.unwrapped.targets, np.tile(target, (2, 1)))
+    rng = np.random.default_rng(2)
+    for k in range(150):  # the first episodes go to the option's target, later ones to the default
+        actions = actions_for("pd-free", rng, 2)
+        for label, c, g in zip(("obs", "reward", "terminated", "truncated", "info"), cpu.step(actions),
+                               gpu.step(actions)):
+            assert_same(c, g, f"step {k} {label}")
+
+
+def test_unsupported_options_and_order_are_named():
+    with pytest.raises(ValueError, match="observation_noise.*CUDA"):
+        gym.make_vec("Scara-C11-v1", num_envs=2, vectorization_mode="vector_entry_point", device="cuda",
+                     observation_noise={"q": 0.01})
+    with pytest.raises(ValueError, match="device must be one of"):
+        gym.make_vec("Scara-C11-v1", num_envs=2, vectorization_mode="vector_entry_point", device="gpu")
+    env = gym.make_vec("Scara-C11-v1", num_envs=2, vectorization_mode="vector_entry_point", device="cuda")
+    with pytest.raises(RuntimeError, match="reset"):
+        env.step(np.zeros((2, 3)))
+
+
+def test_the_torch_ppo_trains_on_the_cuda_env(tmp_path):
+    from agents.torch_ppo import Config, train
+
+    summary = train(Config(device="cuda", num_envs=4, num_steps=8, num_minibatches=2, update_epochs=1,
+                           total_timesteps=64, checkpoint_every=1, out=str(tmp_path / "run")))
+    assert summary["global_step"] == 64
+    assert (tmp_path / "run" / "model.pt").exists()
