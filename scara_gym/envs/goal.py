@@ -262,7 +262,10 @@ class ScaraGoalVectorEnv(_GoalAPI, ScaraVectorEnv):
 
     def __init__(self, num_envs: int = 1, max_episode_steps: int = 300,
                  autoreset_mode: str | AutoresetMode = AutoresetMode.NEXT_STEP, num_threads: int | None = None,
-                 reward_type: str = "sparse", collision_penalty: float = 50.0, **kwargs) -> None:
+                 reward_type: str = "sparse", collision_penalty: float = 50.0, device: str = "cpu",
+                 **kwargs) -> None:
+        if checks.choice("device", device, ("cpu", "cuda")) == "cuda":
+            raise ValueError("device='cuda' is not supported by Scara-C11-Goal-v0 yet; use device='cpu'")
         defaults = {name: p.default for name, p in inspect.signature(ScaraGoalEnv.__init__).parameters.items()
                     if name not in ("self", "reward_type", "collision_penalty", "render_mode")}
         super().__init__(num_envs, max_episode_steps, autoreset_mode, num_threads, **{**defaults, **kwargs})
