@@ -3,7 +3,7 @@ per-robot step of :mod:`scara_gym.envs.core` (and through it the model's integra
 dynamics) as device functions. There is one physics source: the kernels below only give
 each thread its index and its work arrays, and report failures.
 
-numba-cuda compiles the package's ``@njit`` functions for the device on first launch
+numba-cuda compiles the package's CPU-jitted functions for the device on first launch
 (20-40 s). Under numba's CUDA simulator (``NUMBA_ENABLE_CUDASIM=1``) the kernels run as
 Python, one thread at a time, and call the same functions compiled for the CPU, so that the
 CUDA backend is tested bit for bit against the CPU vector environment on a machine without

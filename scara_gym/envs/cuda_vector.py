@@ -115,7 +115,7 @@ class ScaraCudaVectorEnv(VectorEnv):
         self.single_observation_space = spaces.Box(task.obs_low, task.obs_high, dtype=np.float32)
         self.action_space = batch_space(self.single_action_space, n)
         self.observation_space = batch_space(self.single_observation_space, n)
-        self._rngs: list[np.random.Generator] = [seeding.np_random(None)[0] for _ in range(n)]
+        self._rngs: list[np.random.Generator | None] = [None] * n
         self.fixed_plans = not (task.randomize_target or task.randomization)
         depth = 1 if self.fixed_plans else self.plan_depth
 
@@ -138,7 +138,8 @@ class ScaraCudaVectorEnv(VectorEnv):
         self.d_status = cuda.device_array(n, dtype=np.int64)
         # episode plans: ring of `depth` per robot, episode e >= 1 in slot e % depth
         self.plans = np.zeros((n, depth, 6))
-        self.plan_params = np.zeros((n, depth if task.randomization else 1, N_PARAMS_FLOATS))
+        self.plan_params = np.zeros((1, 1, N_PARAMS_FLOATS))
+        self.varied_params = False
         self.plans_made = np.zeros(n, dtype=np.int64)
         self.d_plans = to_device(self.plans)
         self.d_plan_params = to_device(self.plan_params)
@@ -183,10 +184,13 @@ class ScaraCudaVectorEnv(VectorEnv):
     def reset(self, *, seed: int | list[int | None] | None = None, options: dict | None = None):
         seeds = vector_seeds(seed, self.num_envs)
         options = checks.mapping("reset options", options, RESET_OPTIONS)
-        rngs = [self._rngs[i] if s is None else seeding.np_random(s)[0] for i, s in enumerate(seeds)]
-        plans = [self.task.episode_start(rng, options) for rng in rngs]  # all checked before any change
-        self._rngs = rngs
-        task = self.task
+        task, n = self.task, self.num_envs
+        if self.fixed_plans and not options:  # every episode starts alike: no draws, nothing per robot
+            plans = [task.episode_start(None, None)] * n
+        else:
+            rngs = [self._rng(i) if s is None else seeding.np_random(s)[0] for i, s in enumerate(seeds)]
+            plans = [task.episode_start(rng, options) for rng in rngs]  # all checked before any change
+            self._rngs = rngs
         for i, plan in enumerate(plans):
             if plan.params is not task.episode_params[i]:
                 task.robot_params[i] = task.nominal_record if plan.params is task.params else plan.params.to_record()
@@ -197,14 +201,23 @@ class ScaraCudaVectorEnv(VectorEnv):
         self._kernels.begin_kernel[self._blocks, self.threads_per_block](
             self._cuda.to_device(starts), self._cuda.to_device(targets), self.d_robots, self.d_params,
             self.d_config, self.d_task, self.d_outcomes, self.d_obs)
-        self.d_prev_done.copy_to_device(np.zeros(self.num_envs, dtype=np.bool_))
-        self.d_episodes.copy_to_device(np.zeros(self.num_envs, dtype=np.int64))
+        self.d_prev_done.copy_to_device(np.zeros(n, dtype=np.bool_))
+        self.d_episodes.copy_to_device(np.zeros(n, dtype=np.int64))
+        # parameters travel with the plans where they vary: drawn, or overridden for this episode
+        # only (then the next episodes go back to the nominal ones)
+        self.varied_params = bool(task.randomization) or "params" in options
+        depth = self.plans.shape[1]
+        shape = (n, depth, N_PARAMS_FLOATS) if self.varied_params else (1, 1, N_PARAMS_FLOATS)
+        if self.plan_params.shape != shape:
+            self.plan_params = np.zeros(shape)
+            self.d_plan_params = self._cuda.to_device(self.plan_params)
         if self.fixed_plans:
             self.plans[:, 0, :3], self.plans[:, 0, 3:] = task.default_start, task.default_target
+            self.plan_params[:, 0] = np.array([task.nominal_record], dtype=R.PARAMS).view(np.float64)
             self.plans_made[:] = FIXED_PLANS
         else:
             self.plans_made[:] = 0
-            self._refill(np.arange(self.num_envs), np.zeros(self.num_envs, dtype=np.int64))
+            self._refill(np.arange(n), np.zeros(n, dtype=np.int64))
         self._upload_plans()
         self._started = True
         info = {"target": self._torch.from_numpy(targets).to(self.device)}
@@ -215,6 +228,12 @@ class ScaraCudaVectorEnv(VectorEnv):
                               for path in varied}
         return self._tensor(self.d_obs).clone(), info
 
+    def _rng(self, i: int) -> np.random.Generator:
+        """Robot i's episode generator (made on first use: a task without draws needs none)."""
+        if self._rngs[i] is None:
+            self._rngs[i] = seeding.np_random(None)[0]
+        return self._rngs[i]
+
     def _refill(self, rows: np.ndarray, episodes: np.ndarray) -> None:
         """Draw plans for robots `rows` (at episodes `episodes`) until each holds plan_depth - 1 ahead."""
         depth = self.plans.shape[1]
@@ -222,9 +241,9 @@ class ScaraCudaVectorEnv(VectorEnv):
         for i, episode in zip(rows, episodes[rows]):
             while self.plans_made[i] < episode + depth - 1:
                 e = self.plans_made[i] + 1
-                plan = task.episode_start(self._rngs[i], None)
+                plan = task.episode_start(self._rng(i), None)
                 self.plans[i, e % depth, :3], self.plans[i, e % depth, 3:] = plan.start, plan.target
-                if task.randomization:
+                if self.varied_params:
                     record = task.nominal_record if plan.params is task.params else plan.params.to_record()
                     self.plan_params[i, e % depth] = np.array([record], dtype=R.PARAMS).view(np.float64)
                 self.plans_made[i] = e
@@ -245,7 +264,7 @@ class ScaraCudaVectorEnv(VectorEnv):
         kernels.step_kernel[self._blocks, self.threads_per_block](
             same_step, self.max_episode_steps, self.task.collision_mode == "terminate", d_actions, self.d_robots,
             self.d_params, self.d_params_flat, self.d_config, self.d_task, self.d_log, self.d_outcomes, self.d_obs,
-            self.d_prev_done, self.d_plans, self.d_plan_params, bool(self.task.randomization), self.d_plans_made,
+            self.d_prev_done, self.d_plans, self.d_plan_params, self.varied_params, self.d_plans_made,
             self.d_episodes, self.d_reward, self.d_terminated, self.d_truncated, self.d_final_obs, self.d_info,
             self.d_status, self.d_flags)
         failures, first_failed, plans_left = self.d_flags.copy_to_host()  # the one synchronizing copy

@@ -126,3 +126,23 @@ def test_the_torch_ppo_trains_on_the_cuda_env(tmp_path):
                            total_timesteps=64, checkpoint_every=1, out=str(tmp_path / "run")))
     assert summary["global_step"] == 64
     assert (tmp_path / "run" / "model.pt").exists()
+
+
+@pytest.mark.parametrize("autoreset_mode", ["NextStep", "SameStep"])
+def test_parameters_set_for_one_episode_go_back_to_the_nominal_ones(autoreset_mode):
+    """A reset option's parameters hold for that episode only, also on the GPU (where the next
+    episodes of a task without draws begin on the device)."""
+    cpu, gpu = pair("pd-free", autoreset_mode, n=3)
+    options = {"params": {"axes.0.resistance": 1.2 * scara_gym.DEFAULT_PARAMS.axes[0].resistance}}
+    assert_same(*[env.reset(seed=4, options=options)[1] for env in (cpu, gpu)], "reset info")
+    rng = np.random.default_rng(3)
+    ends = 0
+    for k in range(340):
+        actions = actions_for("pd-free", rng, 3)
+        cpu_out, gpu_out = cpu.step(actions), gpu.step(actions)
+        for label, c, g in zip(("obs", "reward", "terminated", "truncated", "info"), cpu_out, gpu_out):
+            assert_same(c, g, f"step {k} {label}")
+        ends += int(cpu_out[2].sum())
+    assert ends > 3  # later episodes ran (on the nominal parameters, as the CPU env's did)
+    assert np.array_equal(cpu.unwrapped.task.robot_params["resistance"],
+                          gpu.unwrapped.d_params.copy_to_host()["resistance"])
