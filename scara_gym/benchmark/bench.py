@@ -316,7 +316,9 @@ def bench_ppo(device: str = "cpu", num_envs: int = 16, num_steps: int = 128, tot
     return figures
 
 
-def main(quick: bool = False, stream=sys.stdout) -> str:
+def main(quick: bool = False, stream=sys.stdout, gpu_only: bool = False) -> str:
+    if gpu_only:
+        return gpu_section(quick, stream)
     repeats = 2 if quick else 7
     chunks = []
     for rtol, atol in ((1e-6, 1e-9),) if quick else ((1e-6, 1e-9), (1e-10, 1e-12)):
@@ -373,18 +375,23 @@ def main(quick: bool = False, stream=sys.stdout) -> str:
         chunks.append(f"PPO training: skipped ({error}; pip install 'scara_gym[train]')")
     print(chunks[-1] + "\n", file=stream, flush=True)
 
+    chunks.append(gpu_section(quick, stream))
+    return "\n\n".join(chunks)
+
+
+def gpu_section(quick: bool, stream) -> str:
     why_not = gpu_available()
     if why_not is not None:
-        chunks.append(f"GPU: skipped: {why_not}")
+        text = f"GPU: skipped: {why_not}"
     else:
         rows = bench_gpu(GPU_SIZES[:2] if quick else GPU_SIZES, 10 if quick else 50)
         lines = ["CUDA vector environment (device='cuda', random voltage actions, Scara-C11-v1):",
                  "| N | robot-steps/s | largest |q| difference to the CPU env after the steps |", "|---|---|---|"]
         lines += [f"| {row['n']:,} | {row['rate']:,.0f} | {row['q_difference']:.1e} |" for row in rows]
-        gpu_ppo = bench_ppo(device="cuda", num_envs=4096, num_steps=32, total_timesteps=4096 * 32 * (2 if quick else 8),
-                            sb3=False)
+        gpu_ppo = bench_ppo(device="cuda", num_envs=4096, num_steps=32,
+                            total_timesteps=4096 * 32 * (2 if quick else 8), sb3=False)
         lines.append(f"\nPPO on the GPU (agents.torch_ppo, 4,096 envs x 32 steps, everything on the device): "
                      f"{gpu_ppo['torch_ppo']:,.0f} steps/s end to end")
-        chunks.append("\n".join(lines))
-    print(chunks[-1], file=stream, flush=True)
-    return "\n\n".join(chunks)
+        text = "\n".join(lines)
+    print(text, file=stream, flush=True)
+    return text

@@ -17,6 +17,7 @@ def main(argv: list[str] | None = None) -> int:
     rep.add_argument("--repeats", type=int, default=5, help="timing repeats of task a (best of)")
     bench = commands.add_parser("bench", help="speed figures, measured side by side")
     bench.add_argument("--quick", action="store_true", help="small sizes: a smoke check")
+    bench.add_argument("--gpu-only", action="store_true", help="only the GPU section (the CUDA vector env)")
     accuracy = commands.add_parser("accuracy", help="errors at given tolerances against a tight run of the same env")
     accuracy.add_argument("--episodes", type=int, default=200, help="random episodes (default 200)")
     accuracy.add_argument("--seed", type=int, default=0, help="seed of the episode plans")
@@ -44,7 +45,7 @@ def main(argv: list[str] | None = None) -> int:
         accuracy_main(args.episodes, args.seed, args.rtol, args.atol)
     elif args.command == "bench":
         from scara_gym.benchmark.bench import main as bench_main
-        bench_main(quick=args.quick)
+        bench_main(quick=args.quick, gpu_only=args.gpu_only)
     return 0
 
 

@@ -56,3 +56,20 @@ def test_the_step_kernel_compiles_for_a_gpu():
             and "PTX" not in result.stdout:
         pytest.skip("numba-cuda's NVVM and NVRTC libraries are not installed (pip install 'scara_gym[cuda]')")
     assert result.returncode == 0 and "PTX" in result.stdout, result.stderr[-4000:]
+
+
+def test_the_card_states_the_extra_arguments_and_their_defaults():
+    import inspect
+    import re
+
+    from scara_gym.envs.cuda_vector import SIM_TO_REAL, ScaraCudaVectorEnv
+
+    card = ScaraCudaVectorEnv.__doc__
+    rows = dict(re.findall(r"^\s*\| (\w+) \| [^|]+ \| (\S+) \|$", card, flags=re.M))
+    rows.pop("argument")  # the header
+    parameters = inspect.signature(ScaraCudaVectorEnv.__init__).parameters
+    extra = {name: p.default for name, p in parameters.items()
+             if name not in ("self", "num_envs", "max_episode_steps", "autoreset_mode", "kwargs")}
+    assert rows == {name: str(default) for name, default in extra.items()}
+    for name in SIM_TO_REAL:  # what is not supported is said
+        assert name in card
