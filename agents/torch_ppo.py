@@ -56,6 +56,7 @@ class Config:
     clip_obs: float = 10.0
     env_threads: int = 1           # numba threads of the CPU env (torch takes the cores between steps)
     torch_threads: int = 0         # 0: torch's default
+    compile: bool = False          # torch.compile the minibatch loss (forward and backward)
     checkpoint_every: int = 10     # updates between checkpoints
     out: str = "runs/torch_ppo"
 
@@ -181,6 +182,21 @@ def train(config: Config, resume: bool = False) -> dict:
     (out / "config.json").write_text(json.dumps(dataclasses.asdict(config), indent=2))
     writer = SummaryWriter(str(out / "tb"))
 
+    def minibatch_loss(obs, actions, old_logprobs, advantages, returns):
+        """PPO's clipped objective, the value loss and the entropy bonus on one minibatch."""
+        _, new_logprob, entropy, new_value = agent.act(obs, actions)
+        ratio = (new_logprob - old_logprobs).exp()
+        advantages = (advantages - advantages.mean()) / (advantages.std() + 1e-8)
+        policy_loss = torch.max(-advantages * ratio,
+                                -advantages * ratio.clamp(1 - config.clip_coef, 1 + config.clip_coef)).mean()
+        value_loss = 0.5 * ((new_value - returns) ** 2).mean()
+        loss = policy_loss - config.ent_coef * entropy.mean() + config.vf_coef * value_loss
+        clip_fraction = ((ratio.detach() - 1.0).abs() > config.clip_coef).float().mean()
+        return loss, policy_loss, value_loss, clip_fraction
+
+    if config.compile:  # fuses the small tensor operations that bound the update (LeanRL's recipe); ~30 s once
+        minibatch_loss = torch.compile(minibatch_loss)
+
     n, steps = config.num_envs, config.num_steps
     obs_buf = torch.zeros((steps, n, obs_size), device=device)
     actions_buf = torch.zeros((steps, n, action_size), device=device)
@@ -253,19 +269,13 @@ def train(config: Config, resume: bool = False) -> dict:
             order = torch.randperm(config.batch_size, device=device)
             for begin in range(0, config.batch_size, config.minibatch_size):
                 mb = order[begin:begin + config.minibatch_size]
-                _, new_logprob, entropy, new_value = agent.act(b_obs[mb], b_actions[mb])
-                ratio = (new_logprob - b_logprobs[mb]).exp()
-                mb_adv = b_advantages[mb]
-                mb_adv = (mb_adv - mb_adv.mean()) / (mb_adv.std() + 1e-8)
-                policy_loss = torch.max(-mb_adv * ratio,
-                                        -mb_adv * ratio.clamp(1 - config.clip_coef, 1 + config.clip_coef)).mean()
-                value_loss = 0.5 * ((new_value - b_returns[mb]) ** 2).mean()
-                loss = policy_loss - config.ent_coef * entropy.mean() + config.vf_coef * value_loss
+                loss, policy_loss, value_loss, clip_fraction = minibatch_loss(
+                    b_obs[mb], b_actions[mb], b_logprobs[mb], b_advantages[mb], b_returns[mb])
                 optimizer.zero_grad()
                 loss.backward()
                 nn.utils.clip_grad_norm_(agent.parameters(), config.max_grad_norm, foreach=True)
                 optimizer.step()
-                clip_fractions.append(((ratio - 1.0).abs() > config.clip_coef).float().mean())
+                clip_fractions.append(clip_fraction)
 
         # -- logs and checkpoints ------------------------------------------------------------
         elapsed = train_seconds + time.perf_counter() - started
