@@ -147,11 +147,20 @@ def learned_runs(runs_root: Path, env_id: str = LATEST_ENV_ID) -> dict[tuple[str
     groups: dict[tuple[str, str], list[Path]] = {}
     for config in sorted(Path(runs_root).glob(f"{env_id}/*/*/seed*/config.json")):
         run = config.parent
-        if (run / "model.zip").exists():
+        if (run / "model.zip").exists() or (run / "model.pt").exists():  # SB3, or agents.torch_ppo
             groups.setdefault((run.parent.name, run.parent.parent.name), []).append(run)
     for key in groups:
         groups[key].sort(key=lambda p: int(p.name.removeprefix("seed")))
     return groups
+
+
+def learned_policy(env, run_dir: Path):
+    """The policy of a finished run: SB3's (model.zip) or agents.torch_ppo's (model.pt)."""
+    if (run_dir / "model.zip").exists():
+        from agents.training import SB3Policy
+        return SB3Policy(env, run_dir)
+    from agents.torch_ppo import TorchPPOPolicy
+    return TorchPPOPolicy(env, run_dir)
 
 
 def compare(runs_root: Path | None = Path("runs/baselines"), conditions: list[str] = ("c11",),
@@ -159,7 +168,6 @@ def compare(runs_root: Path | None = Path("runs/baselines"), conditions: list[st
             bisection_tolerance: float = 5e-4):
     """Every policy in every condition: (entries, traces per condition)."""
     from agents.optimal import OptimalPolicy
-    from agents.training import SB3Policy
 
     entries, traces = [], {}
     groups = learned_runs(runs_root) if runs_root is not None else {}
@@ -196,7 +204,7 @@ def compare(runs_root: Path | None = Path("runs/baselines"), conditions: list[st
                 note="minimum-time voltages held over the control steps (agents.optimal)")
         for (algorithm, mode), run_dirs in sorted(groups.items()):
             env = make_env(condition, mode)
-            runs = [episodes_of(env, SB3Policy(env, d), episodes, seed) for d in run_dirs]
+            runs = [episodes_of(env, learned_policy(env, d), episodes, seed) for d in run_dirs]
             configs = [json.loads((d / "config.json").read_text()) for d in run_dirs]
             add(algorithm, "learned", algorithm, mode, runs, [c["seed"] for c in configs],
                 train_seconds=[c.get("train_seconds") for c in configs])

@@ -304,6 +304,9 @@ def train(config: Config, resume: bool = False) -> dict:
                "steps_per_second": (global_step - (start_update - 1) * config.batch_size)
                / max(time.perf_counter() - started, 1e-9)}
     (out / "summary.json").write_text(json.dumps(summary, indent=2))
+    # the run's record, as agents.training writes it: what the comparison reads
+    (out / "config.json").write_text(json.dumps({**dataclasses.asdict(config), "algo": "torch-ppo", **summary},
+                                                indent=2))
     return summary
 
 

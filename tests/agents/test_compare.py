@@ -31,15 +31,19 @@ def test_comparison_command_writes_every_policy(tmp_path):
     for seed in (0, 1):
         training.train("td3", runs / "Scara-C11-v1" / "pd" / "td3" / f"seed{seed}", seed=seed,
                        hyperparams=hyper, total_timesteps=200)
+    from agents.torch_ppo import Config, train as train_torch_ppo
+    train_torch_ppo(Config(num_envs=2, num_steps=8, num_minibatches=1, update_epochs=1, total_timesteps=16, seed=3,
+                           out=str(runs / "Scara-C11-v1" / "pd" / "torch-ppo" / "seed3")))
     out = tmp_path / "results"
     entries, traces = compare.compare(runs, ["c11"], episodes=2, verbose=False, bisection_tolerance=0.01)
     names = [e["name"] for e in entries]
-    assert names[0] == "pd" and "optimal" in names and names[-1] == "td3"
+    assert names[0] == "pd" and "optimal" in names and names[-2:] == ["td3", "torch-ppo"]
+    assert entries[-1]["seeds"] == [3] and entries[-1]["kind"] == "learned"
     assert sum(e["kind"] == "heuristic" for e in entries) == 4  # two variants, smallest safe and +20 %
     for e in entries:
         assert KEYS <= set(e) and e["condition"] == "c11" and e["episodes"] == 2
         assert e["time_ci"][0] <= e["time_iqm"] <= e["time_ci"][1]
-    pd, optimal, td3 = entries[0], entries[names.index("optimal")], entries[-1]
+    pd, optimal, td3 = entries[0], entries[names.index("optimal")], entries[names.index("td3")]
     assert pd["collision_rate"] == 1.0 and pd["time_iqm"] == compare.TIME_LIMIT
     assert optimal["success_rate"] == 1.0 and optimal["collision_rate"] == 0.0 and optimal["time_iqm"] < 1.25
     heuristic = [e for e in entries if e["kind"] == "heuristic"]
