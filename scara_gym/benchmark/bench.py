@@ -260,17 +260,19 @@ def bench_gpu(sizes=GPU_SIZES, steps: int = 50, env_id: str = "Scara-C11-v1") ->
     for n in sizes:
         gpu = gym.make_vec(env_id, num_envs=n, vectorization_mode="vector_entry_point", device="cuda",
                            control_mode="voltage", collision="penalty")
-        generator = torch.Generator(device="cuda").manual_seed(0)
+        device = gpu.unwrapped.device  # the CPU on numba's simulator (where the code is tested)
+        synchronize = torch.cuda.synchronize if device.type == "cuda" else (lambda: None)
+        generator = torch.Generator(device=device).manual_seed(0)
         gpu.reset(seed=0)
-        actions = [torch.rand((n, 3), generator=generator, device="cuda", dtype=torch.float64) * 2 - 1
+        actions = [torch.rand((n, 3), generator=generator, device=device, dtype=torch.float64) * 2 - 1
                    for _ in range(steps)]
-        gpu.step(actions[0])  # compiles the kernels (cached on disk after the first run)
+        gpu.step(actions[0])  # compiles the kernels
         gpu.reset(seed=0)
-        torch.cuda.synchronize()
+        synchronize()
         started = time.perf_counter()
         for action in actions:
             gpu.step(action)
-        torch.cuda.synchronize()
+        synchronize()
         rate = n * steps / (time.perf_counter() - started)
         compared = min(n, 256)
         cpu = gym.make_vec(env_id, num_envs=compared, vectorization_mode="vector_entry_point",

@@ -146,3 +146,10 @@ def test_parameters_set_for_one_episode_go_back_to_the_nominal_ones(autoreset_mo
     assert ends > 3  # later episodes ran (on the nominal parameters, as the CPU env's did)
     assert np.array_equal(cpu.unwrapped.task.robot_params["resistance"],
                           gpu.unwrapped.d_params.copy_to_host()["resistance"])
+
+
+def test_the_gpu_benchmark_runs_and_finds_no_difference_on_the_simulator():
+    from scara_gym.benchmark.bench import bench_gpu
+
+    (row,) = bench_gpu(sizes=(6,), steps=5)
+    assert row["n"] == 6 and row["rate"] > 0 and row["q_difference"] == 0.0
