@@ -80,7 +80,7 @@ def begin_kernel(starts, targets, robots, params, config, task, outcomes, obs):
 
 
 def step_kernel_ptx(cc: tuple[int, int] = (9, 0)) -> str:
-    """The step kernel compiled to PTX for compute capability ``cc``, without a GPU (NVVM only):
+    """The step kernel (then the begin kernel) compiled to PTX for compute capability ``cc``, without a GPU (NVVM only):
     a check that the device build of the physics compiles, and the input of ``ptxas -v`` for
     its register and stack figures. numba-cuda asks the current device for its compute
     capability when it compiles the device functions a kernel calls; here there may be none,
@@ -104,7 +104,10 @@ def step_kernel_ptx(cc: tuple[int, int] = (9, 0)) -> str:
                  typeof(np.zeros((n, 1), records.EVENT)), typeof(task.outcomes), typeof(task.obs), flags,
                  floats(n, 1, 6), floats(n, 1, N_PARAMS_FLOATS), types.boolean, ints, ints, floats(n), flags, flags,
                  typeof(task.obs), floats(n, len(INFO_FIELDS)), ints, typeof(np.zeros(N_FLAGS, np.int64)))
+    begin_signature = (floats(n, 3), floats(n, 3), typeof(task.robots), typeof(task.robot_params),
+                       typeof(task.config), typeof(task.task), typeof(task.outcomes), typeof(task.obs))
     device = SimpleNamespace(compute_capability=cc)
     with mock.patch.object(dispatcher, "get_current_device", lambda: device):
         ptx, _ = cuda.compile_ptx(step_kernel.py_func, signature, cc=cc)
-    return ptx
+        begin_ptx, _ = cuda.compile_ptx(begin_kernel.py_func, begin_signature, cc=cc)
+    return ptx + "\n" + begin_ptx
