@@ -164,3 +164,16 @@ def test_electrical_energy_balances_losses_and_stored_energy():
     # the trapezoid rule over the integrator's steps bounds the agreement, not the model
     assert np.abs(run.energy - stored).max() < 1e-5 * run.energy[-1]
     assert kinetic.max() > 0.05 * run.energy[-1]  # the balance involves the mechanics, not only losses
+
+
+def test_the_written_out_implicit_solve_gives_the_bits_of_the_linear_solve():
+    """accelerations_implicit repeats solve_linear's elimination on scalars (no allocation, for
+    the GPU): the same operations, so the same bits, pivoting included."""
+    from scara_gym.model.dynamics import solve_linear
+
+    rng = np.random.default_rng(0)
+    for _ in range(2000):
+        q2, v1, v2 = rng.uniform(-7.0, 7.0), rng.normal(0.0, 5.0), rng.normal(0.0, 5.0)
+        torques = rng.normal(0.0, 50.0, 3)
+        expected = solve_linear(mass_matrix(q2, P), bias_vector(q2, v1, v2, *torques, P))
+        assert np.array_equal(np.array(accelerations_implicit(q2, v1, v2, *torques, P)), expected)
