@@ -27,6 +27,8 @@ CONFIGS = {
     # parameters drawn per episode (plans carry parameter records), on v1's exact switches
     "physics": dict(control_mode="pd", randomize_params="physics", randomize_target=True, exact_switches=True,
                     rtol=1e-6, atol=1e-8),
+    # the wall drawn per episode (Scara-C11-RandomWall-v0's preset)
+    "wall": dict(control_mode="pd", randomize_params="wall", randomize_target=True),
 }
 
 
@@ -81,7 +83,7 @@ def test_the_cuda_env_is_the_cpu_env_bit_for_bit(name, autoreset_mode):
         counts["truncations"] += int(cpu_out[3].sum())
     # the episodes ended the ways the config is there for
     expected = {"pd-random": "collisions", "pd-free": "successes", "voltage": "truncations",
-                "physics": "collisions"}[name]
+                "physics": "collisions", "wall": "collisions"}[name]
     assert counts[expected] > 0, counts
     assert np.array_equal(cpu.unwrapped.targets, gpu.unwrapped.targets)
 
