@@ -29,6 +29,11 @@ SIM_TO_REAL = ("observation_noise", "action_delay", "action_rate_limit")
 FIXED_PLANS = 2**62  # "plans made" of a task whose every episode starts alike: its one plan never runs out
 
 
+def as_floats(record) -> np.ndarray:
+    """A PARAMS record as its N_PARAMS_FLOATS float64 values (every field of PARAMS is float64)."""
+    return np.array([record], dtype=R.PARAMS).view(np.float64)
+
+
 def load_backend():
     """(torch, numba.cuda, the kernels module), or an ImportError/RuntimeError that names what is
     missing: numba-cuda, torch, or a GPU with its driver (``NUMBA_ENABLE_CUDASIM=1`` runs the
@@ -136,6 +141,7 @@ class ScaraCudaVectorEnv(VectorEnv):
         self.d_info = cuda.device_array((n, len(INFO_FIELDS)), dtype=np.float64)
         self.d_flags = cuda.device_array(kernels.N_FLAGS, dtype=np.int64)
         self.d_status = cuda.device_array(n, dtype=np.int64)
+        self._flags_start = np.array([0, n, FIXED_PLANS], dtype=np.int64)  # no failure, none failed, plans left
         # episode plans: ring of `depth` per robot, episode e >= 1 in slot e % depth
         self.plans = np.zeros((n, depth, 6))
         self.plan_params = np.zeros((1, 1, N_PARAMS_FLOATS))
@@ -192,9 +198,7 @@ class ScaraCudaVectorEnv(VectorEnv):
             plans = [task.episode_start(rng, options) for rng in rngs]  # all checked before any change
             self._rngs = rngs
         for i, plan in enumerate(plans):
-            if plan.params is not task.episode_params[i]:
-                task.robot_params[i] = task.nominal_record if plan.params is task.params else plan.params.to_record()
-                task.episode_params[i] = plan.params
+            task.use_params(i, plan.params)
         starts = np.array([plan.start for plan in plans])
         targets = np.array([plan.target for plan in plans])
         self.d_params.copy_to_device(task.robot_params)
@@ -213,7 +217,7 @@ class ScaraCudaVectorEnv(VectorEnv):
             self.d_plan_params = self._cuda.to_device(self.plan_params)
         if self.fixed_plans:
             self.plans[:, 0, :3], self.plans[:, 0, 3:] = task.default_start, task.default_target
-            self.plan_params[:, 0] = np.array([task.nominal_record], dtype=R.PARAMS).view(np.float64)
+            self.plan_params[:, 0] = as_floats(task.nominal_record)
             self.plans_made[:] = FIXED_PLANS
         else:
             self.plans_made[:] = 0
@@ -244,8 +248,7 @@ class ScaraCudaVectorEnv(VectorEnv):
                 plan = task.episode_start(self._rng(i), None)
                 self.plans[i, e % depth, :3], self.plans[i, e % depth, 3:] = plan.start, plan.target
                 if self.varied_params:
-                    record = task.nominal_record if plan.params is task.params else plan.params.to_record()
-                    self.plan_params[i, e % depth] = np.array([record], dtype=R.PARAMS).view(np.float64)
+                    self.plan_params[i, e % depth] = as_floats(task.params_record(plan.params))
                 self.plans_made[i] = e
 
     def _upload_plans(self) -> None:
@@ -259,7 +262,7 @@ class ScaraCudaVectorEnv(VectorEnv):
             raise RuntimeError("call reset() before step()")
         torch, kernels = self._torch, self._kernels
         d_actions = self._device_actions(actions)
-        self.d_flags.copy_to_device(np.array([0, self.num_envs, FIXED_PLANS], dtype=np.int64))
+        self.d_flags.copy_to_device(self._flags_start)
         same_step = self.autoreset_mode == AutoresetMode.SAME_STEP
         kernels.step_kernel[self._blocks, self.threads_per_block](
             same_step, self.max_episode_steps, self.task.collision_mode == "terminate", d_actions, self.d_robots,
@@ -270,9 +273,10 @@ class ScaraCudaVectorEnv(VectorEnv):
         failures, first_failed, plans_left = self.d_flags.copy_to_host()  # the one synchronizing copy
         if failures:
             self._raise_for(int(first_failed), d_actions)
-        if not self.fixed_plans and plans_left <= self.plans.shape[1] // 2:
+        low_water = self.plans.shape[1] // 2
+        if not self.fixed_plans and plans_left <= low_water:
             episodes = self.d_episodes.copy_to_host()
-            low = np.flatnonzero(self.plans_made - episodes <= self.plans.shape[1] // 2)
+            low = np.flatnonzero(self.plans_made - episodes <= low_water)
             self._refill(low, episodes)
             self._upload_plans()
 

@@ -323,12 +323,20 @@ class ScaraTask:
             info["params"] = dict(plan.varied)
         return info
 
+    def params_record(self, params: ScaraParams) -> np.void:
+        """The PARAMS record of an episode's parameters (the nominal one is made once)."""
+        return self.nominal_record if params is self.params else params.to_record()
+
+    def use_params(self, i: int, params: ScaraParams) -> None:
+        """Robot i's parameters for its next episode (its record rewritten only on a change)."""
+        if params is not self.episode_params[i]:
+            self.robot_params[i] = self.params_record(params)
+            self.episode_params[i] = params
+
     def begin_episode(self, i: int, plan: EpisodePlan) -> None:
         """Robot i at rest at the plan's start, with its target and parameters."""
         start, target = plan.start, plan.target
-        if plan.params is not self.episode_params[i]:
-            self.robot_params[i] = self.nominal_record if plan.params is self.params else plan.params.to_record()
-            self.episode_params[i] = plan.params
+        self.use_params(i, plan.params)
         if self.actuator is not None:  # before the episode the robot rests: the neutral action
             self.actuator.reset(i, self.setpoint_to_action(start) if self.control_mode == "pd" else np.zeros(3))
         begin_robot(i, start, target, self.robots, self.robot_params, self.config, self.task, self.outcomes, self.obs)
