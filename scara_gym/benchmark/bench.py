@@ -288,16 +288,16 @@ def bench_gpu(sizes=GPU_SIZES, steps: int = 50, env_id: str = "Scara-C11-v1") ->
 
 
 def bench_ppo(device: str = "cpu", num_envs: int = 16, num_steps: int = 128, total_timesteps: int = 32768,
-              sb3: bool = True) -> dict:
+              sb3: bool = True, minibatch_size: int = 64) -> dict:
     """End-to-end training steps/s of agents.torch_ppo and, with sb3, of stable-baselines3's PPO with
-    equal batch settings (num_envs x num_steps per rollout, minibatches of 64, 10 epochs, the same
+    equal batch settings (num_envs x num_steps per rollout, minibatches of minibatch_size, 10 epochs, the same
     env id and arguments, VecNormalize for SB3 as the torch PPO normalizes), each timed over its
     learning loop."""
     import tempfile
 
     from agents.torch_ppo import Config, train
 
-    minibatches = max(1, num_envs * num_steps // 64)
+    minibatches = max(1, num_envs * num_steps // minibatch_size)
     with tempfile.TemporaryDirectory() as out:
         config = Config(device=device, num_envs=num_envs, num_steps=num_steps, num_minibatches=minibatches,
                         update_epochs=10, total_timesteps=total_timesteps, checkpoint_every=10**9, out=out)
@@ -311,7 +311,8 @@ def bench_ppo(device: str = "cpu", num_envs: int = 16, num_steps: int = 128, tot
 
         env = VecNormalize(SB3VecEnv(num_envs=num_envs, num_threads=1, **ENV_KWARGS[config.env_id]),
                            gamma=config.gamma)
-        model = PPO("MlpPolicy", env, n_steps=num_steps, batch_size=64, n_epochs=10, seed=0, device="cpu")
+        model = PPO("MlpPolicy", env, n_steps=num_steps, batch_size=minibatch_size, n_epochs=10, seed=0,
+                    device="cpu")
         started = time.perf_counter()
         model.learn(total_timesteps)
         figures["sb3_ppo"] = total_timesteps / (time.perf_counter() - started)
@@ -390,9 +391,10 @@ def gpu_section(quick: bool, stream) -> str:
         lines = ["CUDA vector environment (device='cuda', random voltage actions, Scara-C11-v1):",
                  "| N | robot-steps/s | largest |q| difference to the CPU env after the steps |", "|---|---|---|"]
         lines += [f"| {row['n']:,} | {row['rate']:,.0f} | {row['q_difference']:.1e} |" for row in rows]
-        gpu_ppo = bench_ppo(device="cuda", num_envs=4096, num_steps=32,
-                            total_timesteps=4096 * 32 * (2 if quick else 8), sb3=False)
-        lines.append(f"\nPPO on the GPU (agents.torch_ppo, 4,096 envs x 32 steps, everything on the device): "
+        gpu_ppo = bench_ppo(device="cuda", num_envs=4096, num_steps=32, total_timesteps=4096 * 32 * (2 if quick else 8),
+                            sb3=False, minibatch_size=4096 * 32 // 4)
+        lines.append(f"\nPPO on the GPU (agents.torch_ppo, 4,096 envs x 32 steps, 4 minibatches, everything on the "
+                     f"device): "
                      f"{gpu_ppo['torch_ppo']:,.0f} steps/s end to end")
         text = "\n".join(lines)
     print(text, file=stream, flush=True)
