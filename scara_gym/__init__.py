@@ -46,7 +46,7 @@ _ENTRY_POINTS = {
     "Scara-C11-RandomWall-v0": "scara_gym.envs.variants:ScaraRandomWallEnv",
     "Scara-C11-Goal-v0": "scara_gym.envs.goal:ScaraGoalEnv",
 }
-_VECTOR_ENTRY_POINTS = {"Scara-C11-Goal-v0": "scara_gym.envs.goal:ScaraGoalVectorEnv"}
+_VECTOR_ENTRY_POINTS = {"Scara-C11-Goal-v0": "scara_gym.envs.goal:make_goal_vector_env"}
 for _env_id, _kwargs in ENV_KWARGS.items():
     if _env_id not in registry:
         # 300 steps of the default 0.01 s control step: the 3 s time limit

@@ -294,16 +294,31 @@ def next_episode(i, robots, params, params_flat, config, task, outcomes, obs, pl
 
 
 @njit(**JIT)
-def vector_robot_step(i, same_step, max_episode_steps, terminate_collisions, actions, robots, params, params_flat,
-                      config, task, log, outcomes, obs, prev_done, plans, plan_params, varied_params, plans_made,
-                      episodes, reward, terminated, truncated, final_obs, info, workspace):
+def goal_gap(obs_row, target) -> float:
+    """max_j |q_j - q^_j| on the goals as the goal env sees them: q as observed (float32) and
+    the target rounded to float32, the difference in float64 (GoalRules' success test)."""
+    gap = 0.0
+    for j in range(3):
+        gap = max(gap, abs(np.float64(obs_row[O_Q + j]) - np.float64(np.float32(target[j]))))
+    return gap
+
+
+@njit(**JIT)
+def vector_robot_step(i, same_step, max_episode_steps, terminate_collisions, goal_threshold, actions, robots,
+                      params, params_flat, config, task, log, outcomes, obs, prev_done, plans, plan_params,
+                      varied_params, plans_made, episodes, reward, terminated, truncated, final_obs, info, workspace):
     """Robot i's part of one vector env step, as ScaraVectorEnv does it: with NextStep
     autoreset a robot whose episode ended in the last step begins its next one (reward 0,
     neither flag) instead of stepping; with SameStep an ending step's observation goes to
     final_obs and the robot begins its next episode at once. Writes reward, the flags and
-    the packed info (INFO_FIELDS, before a SameStep reset); returns the status."""
+    the packed info (INFO_FIELDS, before a SameStep reset); returns the status.
+
+    goal_threshold > 0: the goal env's episode end (ScaraGoalVectorEnv): the goal test
+    ``goal_gap < goal_threshold`` instead of the located target event, or a terminating
+    collision; 0: the environment's own."""
     status = 0
-    if not same_step and prev_done[i]:
+    stepped = same_step or not prev_done[i]
+    if not stepped:
         if not next_episode(i, robots, params, params_flat, config, task, outcomes, obs, plans, plan_params,
                             varied_params, plans_made, episodes):
             status = STATUS_NO_PLAN
@@ -311,7 +326,11 @@ def vector_robot_step(i, same_step, max_episode_steps, terminate_collisions, act
         status = robot_step(actions[i], robots[i], params[i], config[0], task[0], log[i], outcomes[i], obs[i],
                             workspace)
     outcome = outcomes[i]
-    ended = outcome.reached or (terminate_collisions and outcome.collisions > 0)
+    collided = terminate_collisions and outcome.collisions > 0
+    if goal_threshold > 0.0:
+        ended = stepped and (goal_gap(obs[i], params[i].target) < goal_threshold or collided)
+    else:
+        ended = outcome.reached or collided
     cut = outcome.episode_steps >= max_episode_steps
     reward[i] = outcome.reward
     terminated[i] = ended

@@ -47,9 +47,9 @@ else:
 
 
 @cuda.jit
-def step_kernel(same_step, max_episode_steps, terminate_collisions, actions, robots, params, params_flat, config,
-                task, log, outcomes, obs, prev_done, plans, plan_params, varied_params, plans_made, episodes,
-                reward, terminated, truncated, final_obs, info, statuses, flags):
+def step_kernel(same_step, max_episode_steps, terminate_collisions, goal_threshold, actions, robots, params,
+                params_flat, config, task, log, outcomes, obs, prev_done, plans, plan_params, varied_params, plans_made,
+                episodes, reward, terminated, truncated, final_obs, info, statuses, flags):
     """vector_robot_step for robot i = the thread's index, in the thread's local work arrays."""
     i = cuda.grid(1)
     if i >= robots.shape[0]:
@@ -57,8 +57,8 @@ def step_kernel(same_step, max_episode_steps, terminate_collisions, actions, rob
     workspace = (cuda.local.array(WORK_SHAPE, float64), cuda.local.array(SMALL_SHAPE, float64),
                  cuda.local.array(STACK_SHAPE, float64), cuda.local.array(N_EVENTS, boolean))
     status = vector_robot_step(
-        i, same_step, max_episode_steps, terminate_collisions, native(actions), native(robots), native(params),
-        native(params_flat), native(config), native(task), native(log), native(outcomes), native(obs),
+        i, same_step, max_episode_steps, terminate_collisions, goal_threshold, native(actions), native(robots),
+        native(params), native(params_flat), native(config), native(task), native(log), native(outcomes), native(obs),
         native(prev_done), native(plans), native(plan_params), varied_params, native(plans_made),
         native(episodes), native(reward), native(terminated), native(truncated), native(final_obs), native(info),
         workspace)
@@ -99,7 +99,7 @@ def step_kernel_ptx(cc: tuple[int, int] = (9, 0)) -> str:
     n, typeof = 2, numba.typeof
     floats = lambda *shape: typeof(np.zeros(shape))  # noqa: E731
     ints, flags = typeof(np.zeros(n, np.int64)), typeof(np.zeros(n, np.bool_))
-    signature = (types.boolean, types.int64, types.boolean, floats(n, 3), typeof(task.robots),
+    signature = (types.boolean, types.int64, types.boolean, types.float64, floats(n, 3), typeof(task.robots),
                  typeof(task.robot_params), floats(n, N_PARAMS_FLOATS), typeof(task.config), typeof(task.task),
                  typeof(np.zeros((n, 1), records.EVENT)), typeof(task.outcomes), typeof(task.obs), flags,
                  floats(n, 1, 6), floats(n, 1, N_PARAMS_FLOATS), types.boolean, ints, ints, floats(n), flags, flags,

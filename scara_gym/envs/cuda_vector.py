@@ -25,7 +25,7 @@ CUDA_EXTRA = 'pip install "scara_gym[cuda]"'
 GPU_EVENT_LOG_SIZE = 1  # the env reads no event log (collisions and reach times are counted), so keep it small
 # the packed info's columns after the reward terms (which come first, in REWARD_TERMS order)
 INFO_INDEX = {name: k for k, name in enumerate(INFO_FIELDS) if k >= len(REWARD_TERMS)}
-SIM_TO_REAL = ("observation_noise", "action_delay", "action_rate_limit")
+TARGET_COLUMNS = slice(R.PARAMS.fields["target"][1] // 8, R.PARAMS.fields["target"][1] // 8 + 3)
 FIXED_PLANS = 2**62  # "plans made" of a task whose every episode starts alike: its one plan never runs out
 
 
@@ -86,8 +86,13 @@ class ScaraCudaVectorEnv(VectorEnv):
     previous one ends (autoreset). The host refills a robot's plans when they run low; a task
     whose episodes all start alike (no randomized target or parameters) needs none.
 
-    Not supported here (a ValueError says so): the sim-to-real options (observation_noise,
-    action_delay, action_rate_limit), rendering, and the goal-conditioned id.
+    Sim-to-real options: ``action_delay`` and ``action_rate_limit`` act on the device
+    (torch) as on the CPU, bit for bit, with ``info["applied_action"]``. ``observation_noise``
+    is drawn on the device from a torch generator seeded by ``reset(seed=...)`` (a seed list:
+    from all its seeds; no seed: fresh entropy): the same distribution as on the CPU (zero-mean
+    Gaussian per entry, then clipped to the observation space), not the same draws, since the
+    CPU env draws robot i's noise from robot i's episode generator, which here draws the plans
+    ahead. Rendering is not supported.
     """
 
     metadata = {"autoreset_mode": AutoresetMode.NEXT_STEP, "render_modes": []}
@@ -105,10 +110,6 @@ class ScaraCudaVectorEnv(VectorEnv):
         self.threads_per_block = checks.integer("threads_per_block", threads_per_block, 1, 1024)
         if kwargs.get("render_mode") is not None:
             raise ValueError("the vector environment does not render; use render_mode=None")
-        for name in SIM_TO_REAL:
-            if kwargs.get(name) not in (None, 0, {}):
-                raise ValueError(f"{name} is not supported by the CUDA backend (device='cuda') yet; "
-                                 "use device='cpu' for the sim-to-real options")
         self.task = task = ScaraTask(num_robots=num_envs, **kwargs)
         self.num_envs = n = num_envs
         self.metadata = {**type(self).metadata, "autoreset_mode": autoreset_mode}
@@ -153,6 +154,17 @@ class ScaraCudaVectorEnv(VectorEnv):
         self.d_episodes = to_device(np.zeros(n, dtype=np.int64))
         self._blocks = (n + self.threads_per_block - 1) // self.threads_per_block
         self._started = False
+        self._goal_threshold = 0.0  # the goal env's episode end where > 0 (scara_gym.envs.goal)
+
+        # sim-to-real, on the device: the actuator's delay line and slew limit, the noise
+        options = task.sim_to_real
+        self.actuator = TorchActuator(torch, options, n, self.device) if options.shapes_actions else None
+        # the neutral action of an episode that starts at the default start (every autoreset one)
+        self._neutral = self._neutral_actions(np.tile(task.default_start, (n, 1)))
+        self._noise_std = torch.from_numpy(options.noise_std).to(self.device) if options.noisy else None
+        self._obs_low = torch.from_numpy(task.obs_low.astype(np.float64)).to(self.device)
+        self._obs_high = torch.from_numpy(task.obs_high.astype(np.float64)).to(self.device)
+        self._noise_generator = None
 
     def _flat_view(self, d_params):
         """The PARAMS records as float64 rows, the same memory (every field of PARAMS is float64)."""
@@ -170,7 +182,7 @@ class ScaraCudaVectorEnv(VectorEnv):
         return torch.as_tensor(d_array, device=self.device)
 
     def _device_actions(self, actions):
-        """Checked float64 actions on the device (finite, shape (num_envs, 3))."""
+        """Checked float64 actions as a torch tensor on the device (finite, shape (num_envs, 3))."""
         torch = self._torch
         shape = (self.num_envs, 3)
         if isinstance(actions, torch.Tensor):
@@ -179,12 +191,47 @@ class ScaraCudaVectorEnv(VectorEnv):
             if tuple(actions.shape) != shape:
                 raise ValueError(f"action must have shape {shape}, got {tuple(actions.shape)}")
             if not self.simulator and actions.device.type == "cuda":
-                actions = actions.to(device=self.device, dtype=torch.float64).contiguous()
+                actions = actions.detach().to(device=self.device, dtype=torch.float64).contiguous()
                 if not bool(torch.isfinite(actions).all()):
                     check_actions(actions.cpu().numpy(), shape)  # raises naming the value
-                return self._cuda.as_cuda_array(actions.detach())
+                return actions
             actions = actions.detach().cpu().numpy()
-        return self._cuda.to_device(check_actions(actions, shape))
+        return torch.from_numpy(check_actions(actions, shape)).to(self.device)
+
+    def _numba_array(self, tensor):
+        """A torch tensor of the device as a numba device array (a view on the GPU)."""
+        if self.simulator:
+            return self._cuda.to_device(np.ascontiguousarray(tensor.numpy()))
+        return self._cuda.as_cuda_array(tensor.contiguous())
+
+    def _targets(self):
+        """Every robot's target q^ [rad, rad, m] (float64 tensor, a copy)."""
+        return self._tensor(self.d_params_flat)[:, TARGET_COLUMNS].clone()
+
+    def _neutral_actions(self, starts: np.ndarray):
+        """The actions of robots at rest at ``starts``: their set-points in "pd" mode, zero volts
+        in "voltage" mode (the actuator's state before an episode), as a tensor."""
+        task = self.task
+        neutral = np.array([task.setpoint_to_action(start) for start in starts]) if task.control_mode == "pd" \
+            else np.zeros((len(starts), 3))
+        return self._torch.from_numpy(neutral).to(self.device)
+
+    def _noisy(self, obs):
+        """Observations as the agents get them: with the observation noise, where configured."""
+        if self._noise_std is None:
+            return obs
+        torch = self._torch
+        noise = torch.randn(obs.shape, generator=self._noise_generator, dtype=torch.float64, device=self.device)
+        noisy = obs.to(torch.float64) + noise * self._noise_std
+        return torch.minimum(torch.maximum(noisy, self._obs_low), self._obs_high).to(torch.float32)
+
+    def _seed_noise(self, seeds: list[int | None]) -> None:
+        if self._noise_std is None or (self._noise_generator is not None and all(s is None for s in seeds)):
+            return
+        given = [s for s in seeds if s is not None]
+        entropy = np.random.SeedSequence(given if given else None).generate_state(2, np.uint32)
+        self._noise_generator = self._torch.Generator(device=self.device)
+        self._noise_generator.manual_seed(int(entropy[0]) << 31 | int(entropy[1]) >> 1)
 
     # -- episodes ------------------------------------------------------------------------
     def reset(self, *, seed: int | list[int | None] | None = None, options: dict | None = None):
@@ -199,6 +246,7 @@ class ScaraCudaVectorEnv(VectorEnv):
             self._rngs = rngs
         for i, plan in enumerate(plans):
             task.use_params(i, plan.params)
+        self._seed_noise(seeds)
         starts = np.array([plan.start for plan in plans])
         targets = np.array([plan.target for plan in plans])
         self.d_params.copy_to_device(task.robot_params)
@@ -223,6 +271,9 @@ class ScaraCudaVectorEnv(VectorEnv):
             self.plans_made[:] = 0
             self._refill(np.arange(n), np.zeros(n, dtype=np.int64))
         self._upload_plans()
+        if self.actuator is not None:
+            self.actuator.reset(self._torch.ones(n, dtype=self._torch.bool, device=self.device),
+                                self._neutral_actions(starts))
         self._started = True
         info = {"target": self._torch.from_numpy(targets).to(self.device)}
         varied = sorted({path for plan in plans for path in plan.varied})
@@ -230,7 +281,8 @@ class ScaraCudaVectorEnv(VectorEnv):
             info["params"] = {path: self._torch.tensor([plan.varied.get(path, np.nan) for plan in plans],
                                                        dtype=self._torch.float64, device=self.device)
                               for path in varied}
-        return self._tensor(self.d_obs).clone(), info
+        obs = self._tensor(self.d_obs).clone()
+        return self._agent_view(self._noisy(obs), obs, self._targets()), info
 
     def _rng(self, i: int) -> np.random.Generator:
         """Robot i's episode generator (made on first use: a task without draws needs none)."""
@@ -261,15 +313,25 @@ class ScaraCudaVectorEnv(VectorEnv):
         if not self._started:
             raise RuntimeError("call reset() before step()")
         torch, kernels = self._torch, self._kernels
-        d_actions = self._device_actions(actions)
-        self.d_flags.copy_to_device(self._flags_start)
+        n = self.num_envs
+        given = self._device_actions(actions)
         same_step = self.autoreset_mode == AutoresetMode.SAME_STEP
+        # robots that begin an episode instead of stepping (NextStep autoreset)
+        resetting = torch.zeros(n, dtype=torch.bool, device=self.device) if same_step \
+            else self._tensor(self.d_prev_done).clone()
+        applied = given
+        if self.actuator is not None:  # the delay line and the slew limit see the clipped action
+            clipped_given = (given.abs() > 1.0).sum(dim=1)
+            applied = self.actuator.apply(given.clamp(-1.0, 1.0))
+        targets_before = self._targets() if self._goal_threshold > 0.0 else None
+        d_actions = self._numba_array(applied)
+        self.d_flags.copy_to_device(self._flags_start)
         kernels.step_kernel[self._blocks, self.threads_per_block](
-            same_step, self.max_episode_steps, self.task.collision_mode == "terminate", d_actions, self.d_robots,
-            self.d_params, self.d_params_flat, self.d_config, self.d_task, self.d_log, self.d_outcomes, self.d_obs,
-            self.d_prev_done, self.d_plans, self.d_plan_params, self.varied_params, self.d_plans_made,
-            self.d_episodes, self.d_reward, self.d_terminated, self.d_truncated, self.d_final_obs, self.d_info,
-            self.d_status, self.d_flags)
+            same_step, self.max_episode_steps, self.task.collision_mode == "terminate", self._goal_threshold,
+            d_actions, self.d_robots, self.d_params, self.d_params_flat, self.d_config, self.d_task, self.d_log,
+            self.d_outcomes, self.d_obs, self.d_prev_done, self.d_plans, self.d_plan_params, self.varied_params,
+            self.d_plans_made, self.d_episodes, self.d_reward, self.d_terminated, self.d_truncated, self.d_final_obs,
+            self.d_info, self.d_status, self.d_flags)
         failures, first_failed, plans_left = self.d_flags.copy_to_host()  # the one synchronizing copy
         if failures:
             self._raise_for(int(first_failed), d_actions)
@@ -285,15 +347,36 @@ class ScaraCudaVectorEnv(VectorEnv):
         terminated = self._tensor(self.d_terminated).clone()
         truncated = self._tensor(self.d_truncated).clone()
         info = self._info(self._tensor(self.d_info))
-        if same_step:
-            done = terminated | truncated
-            if bool(done.any()):
-                final = self._tensor(self.d_final_obs)
-                info["final_obs"] = torch.where(done[:, None], final, torch.zeros_like(final))
-                info["_final_obs"] = done
-                info["final_info"] = {k: v for k, v in info.items() if not k.startswith("final")}
-                info["_final_info"] = done
-        return obs, reward, terminated, truncated, info
+        done = terminated | truncated
+        final = self._tensor(self.d_final_obs) if same_step and bool(done.any()) else None
+        if self.actuator is not None:
+            stepped = ~resetting
+            info["clipped_actions"] = torch.where(stepped, clipped_given, info["clipped_actions"])
+            self.actuator.reset(resetting, self._neutral)  # as the CPU env: before the step's info
+            info["applied_action"] = self.actuator.applied.clone()
+            if same_step:
+                self.actuator.reset(done, self._neutral)  # the next episodes: after it
+        if self._goal_threshold > 0.0:
+            clean = obs if final is None else torch.where(done[:, None], final, obs)
+            reward, info = self._judge(clean, targets_before, info, ~resetting)
+        view = self._agent_view(self._noisy(obs), obs, self._targets() if self._goal_threshold > 0.0 else None)
+        if final is not None:
+            final_view = self._agent_view(self._noisy(final), final, targets_before)
+            info["final_obs"] = _masked(torch, final_view, done)
+            info["_final_obs"] = done
+            info["final_info"] = {k: v for k, v in info.items() if not k.startswith("final")}
+            info["_final_info"] = done
+        return view, reward, terminated, truncated, info
+
+    # -- hooks of the goal-conditioned env (scara_gym.envs.goal) -------------------------
+    def _agent_view(self, obs, clean_obs, targets):
+        """The observations as the agents get them (obs: with noise; clean_obs: without)."""
+        return obs
+
+    def _judge(self, clean_obs, targets, info, stepped):
+        """The goal env's reward and info of a step, from the true observations at its end and
+        the targets it ran to (only where _goal_threshold > 0)."""
+        raise NotImplementedError
 
     def _info(self, packed) -> dict:
         """The CPU vector env's info entries from the packed info rows (INFO_FIELDS)."""
@@ -330,3 +413,44 @@ class ScaraCudaVectorEnv(VectorEnv):
     def targets(self) -> np.ndarray:
         """The robots' targets q^ [rad, rad, m], shape (num_envs, 3) (a host copy)."""
         return self.d_params.copy_to_host()["target"]
+
+
+def _masked(torch, obs, done):
+    """obs (a tensor or a dict of them over the robots) where done, 0 elsewhere."""
+    if isinstance(obs, dict):
+        return {key: _masked(torch, value, done) for key, value in obs.items()}
+    return torch.where(done[:, None], obs, torch.zeros_like(obs))
+
+
+class TorchActuator:
+    """:class:`scara_gym.envs.sim_to_real.Actuator` on torch tensors: the same operations in
+    the same order, so the same bits."""
+
+    def __init__(self, torch, options, num_robots: int, device) -> None:
+        self.torch = torch
+        self.pending = torch.zeros((num_robots, options.action_delay, 3), dtype=torch.float64, device=device)
+        """actions given and not yet applied, oldest first"""
+        self.applied = torch.zeros((num_robots, 3), dtype=torch.float64, device=device)
+        """the action applied in each robot's last step"""
+        rate = options.action_rate_limit
+        self.max_change = None if rate is None else rate * options.control_dt
+
+    def reset(self, rows, neutral) -> None:
+        """The robots where ``rows`` (a bool tensor) begin an episode: the line full of their
+        neutral action (``neutral``: one row per robot), the output at it."""
+        rows = rows[:, None]
+        self.pending = self.torch.where(rows[:, :, None], neutral[:, None, :], self.pending)
+        self.applied = self.torch.where(rows, neutral, self.applied)
+
+    def apply(self, actions):
+        """The actions every robot applies this step, given ``actions`` (clipped to [-1, 1]);
+        advances the delay lines."""
+        torch = self.torch
+        out = actions
+        if self.pending.shape[1]:
+            out = self.pending[:, 0].clone()
+            self.pending = torch.cat([self.pending[:, 1:], actions[:, None]], dim=1)
+        if self.max_change is not None:
+            out = self.applied + (out - self.applied).clamp(-self.max_change, self.max_change)
+        self.applied = out
+        return out

@@ -18,6 +18,7 @@ from gymnasium.vector import AutoresetMode
 from gymnasium.vector.utils import batch_space
 
 from scara_gym.envs.core import DISTANCE_SCALE
+from scara_gym.envs.cuda_vector import ScaraCudaVectorEnv
 from scara_gym.envs.scara_env import ScaraEnv
 from scara_gym.envs.task import OBSERVATION_LAYOUT, OBSERVATION_NAMES
 from scara_gym.envs.vector import ScaraVectorEnv
@@ -254,6 +255,14 @@ class ScaraGoalEnv(_GoalAPI, ScaraEnv):
         return goal_obs, float(outcome.reward), terminated, False, info
 
 
+def _with_goal_defaults(kwargs: dict) -> dict:
+    """Environment arguments with ScaraGoalEnv's defaults where not given (its physics and its
+    goals drawn per episode, not ScaraEnv's)."""
+    defaults = {name: p.default for name, p in inspect.signature(ScaraGoalEnv.__init__).parameters.items()
+                if name not in ("self", "reward_type", "collision_penalty", "render_mode")}
+    return {**defaults, **kwargs}
+
+
 class ScaraGoalVectorEnv(_GoalAPI, ScaraVectorEnv):
     """N copies of Scara-C11-Goal-v0 stepped in parallel (ScaraVectorEnv's arguments plus
     reward_type and collision_penalty). Observations are a dict of batched arrays; with
@@ -262,13 +271,8 @@ class ScaraGoalVectorEnv(_GoalAPI, ScaraVectorEnv):
 
     def __init__(self, num_envs: int = 1, max_episode_steps: int = 300,
                  autoreset_mode: str | AutoresetMode = AutoresetMode.NEXT_STEP, num_threads: int | None = None,
-                 reward_type: str = "sparse", collision_penalty: float = 50.0, device: str = "cpu",
-                 **kwargs) -> None:
-        if checks.choice("device", device, ("cpu", "cuda")) == "cuda":
-            raise ValueError("device='cuda' is not supported by Scara-C11-Goal-v0 yet; use device='cpu'")
-        defaults = {name: p.default for name, p in inspect.signature(ScaraGoalEnv.__init__).parameters.items()
-                    if name not in ("self", "reward_type", "collision_penalty", "render_mode")}
-        super().__init__(num_envs, max_episode_steps, autoreset_mode, num_threads, **{**defaults, **kwargs})
+                 reward_type: str = "sparse", collision_penalty: float = 50.0, **kwargs) -> None:
+        super().__init__(num_envs, max_episode_steps, autoreset_mode, num_threads, **_with_goal_defaults(kwargs))
         self.rules = GoalRules(reward_type, collision_penalty, self.task.params.task.accuracy,
                                self.task.collision_mode)
         self.single_observation_space = _goal_spaces(self.task)
@@ -286,3 +290,61 @@ class ScaraGoalVectorEnv(_GoalAPI, ScaraVectorEnv):
         info["reward_terms"] = terms
         info["is_success"] = outcome.success & stepped
         return terms["goal"] + terms["collision"], outcome.terminated & stepped, info
+
+
+def make_goal_vector_env(num_envs: int = 1, device: str = "cpu", **kwargs):
+    """The vector entry point of Scara-C11-Goal-v0: ``device="cpu"`` (default) gives
+    :class:`ScaraGoalVectorEnv`, ``device="cuda"`` :class:`ScaraCudaGoalVectorEnv`."""
+    if checks.choice("device", device, ("cpu", "cuda")) == "cuda":
+        return ScaraCudaGoalVectorEnv(num_envs=num_envs, **kwargs)
+    return ScaraGoalVectorEnv(num_envs=num_envs, **kwargs)
+
+
+class ScaraCudaGoalVectorEnv(_GoalAPI, ScaraCudaVectorEnv):
+    """Scara-C11-Goal-v0 on the GPU: N robots of ScaraGoalVectorEnv stepped by the CUDA
+    backend (ScaraCudaVectorEnv's arguments plus reward_type and collision_penalty).
+    Observations are a dict of tensors, rewards, flags and info tensors; robot i is
+    ScaraGoalVectorEnv's robot i bit for bit on numba's CUDA simulator. The goal test
+    ends episodes inside the step kernel (core.vector_robot_step's goal_threshold);
+    rewards and terms are the goal rules on tensors. compute_reward and friends take
+    numpy arrays (HER's replay buffers), as on the CPU."""
+
+    def __init__(self, num_envs: int = 1, max_episode_steps: int = 300,
+                 autoreset_mode: str | AutoresetMode = AutoresetMode.NEXT_STEP,
+                 reward_type: str = "sparse", collision_penalty: float = 50.0, **kwargs) -> None:
+        super().__init__(num_envs, max_episode_steps, autoreset_mode, **_with_goal_defaults(kwargs))
+        self.rules = GoalRules(reward_type, collision_penalty, self.task.params.task.accuracy,
+                               self.task.collision_mode)
+        self._goal_threshold = self.rules.threshold
+        self._scale = self._torch.from_numpy(DISTANCE_SCALE).to(self.device)
+        self.single_observation_space = _goal_spaces(self.task)
+        self.observation_space = batch_space(self.single_observation_space, self.num_envs)
+
+    def _agent_view(self, obs, clean_obs, targets):
+        return {"observation": obs[:, KEPT], "achieved_goal": clean_obs[:, Q].clone(),
+                "desired_goal": targets.to(self._torch.float32)}
+
+    def _judge(self, clean_obs, targets, info, stepped):
+        """GoalRules.outcome on tensors, in numpy's order of operations."""
+        torch = self._torch
+        gap = clean_obs[:, Q].to(torch.float64) - targets.to(torch.float32).to(torch.float64)
+        success = gap.abs().amax(dim=1) < self.rules.threshold
+        if self.rules.reward_type == "sparse":
+            goal = -(~success).to(torch.float64)
+        else:  # np.linalg.norm's sum: (x0^2 + x1^2) + x2^2
+            x = gap / self._scale
+            goal = -_sqrt(torch, (x[:, 0] * x[:, 0] + x[:, 1] * x[:, 1]) + x[:, 2] * x[:, 2])
+        collision = -self.rules.collision_penalty * info["cost"]
+        zero = torch.zeros_like(goal)
+        terms = {"goal": torch.where(stepped, goal, zero), "collision": torch.where(stepped, collision, zero)}
+        info["reward_terms"] = terms
+        info["is_success"] = success & stepped
+        return terms["goal"] + terms["collision"], info
+
+
+def _sqrt(torch, values):
+    """Correctly rounded square roots: torch's float64 sqrt on the CPU is not (about 1 % of
+    values differ from numpy's in the last bit), CUDA's is."""
+    if values.device.type == "cpu":
+        return torch.from_numpy(np.sqrt(values.numpy()))
+    return torch.sqrt(values)

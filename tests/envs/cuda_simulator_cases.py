@@ -29,6 +29,10 @@ CONFIGS = {
                     rtol=1e-6, atol=1e-8),
     # the wall drawn per episode (Scara-C11-RandomWall-v0's preset)
     "wall": dict(control_mode="pd", randomize_params="wall", randomize_target=True),
+    # sim-to-real actuation on the device: dead time and slew limit, clipped actions counted
+    "delay-slew": dict(control_mode="pd", randomize_target=True, action_delay=2, action_rate_limit=30.0),
+    "voltage-slew": dict(control_mode="voltage", collision="penalty", max_episode_steps=40, action_delay=1,
+                         action_rate_limit=50.0),
 }
 
 
@@ -83,7 +87,8 @@ def test_the_cuda_env_is_the_cpu_env_bit_for_bit(name, autoreset_mode):
         counts["truncations"] += int(cpu_out[3].sum())
     # the episodes ended the ways the config is there for
     expected = {"pd-random": "collisions", "pd-free": "successes", "voltage": "truncations",
-                "physics": "collisions", "wall": "collisions"}[name]
+                "physics": "collisions", "wall": "collisions", "delay-slew": "collisions",
+                "voltage-slew": "truncations"}[name]
     assert counts[expected] > 0, counts
     assert np.array_equal(cpu.unwrapped.targets, gpu.unwrapped.targets)
 
@@ -111,9 +116,6 @@ def test_a_rejected_action_changes_nothing_and_reset_options_hold_for_one_episod
 
 
 def test_unsupported_options_and_order_are_named():
-    with pytest.raises(ValueError, match="observation_noise.*CUDA"):
-        gym.make_vec("Scara-C11-v1", num_envs=2, vectorization_mode="vector_entry_point", device="cuda",
-                     observation_noise={"q": 0.01})
     with pytest.raises(ValueError, match="device must be one of"):
         gym.make_vec("Scara-C11-v1", num_envs=2, vectorization_mode="vector_entry_point", device="gpu")
     env = gym.make_vec("Scara-C11-v1", num_envs=2, vectorization_mode="vector_entry_point", device="cuda")
@@ -155,3 +157,98 @@ def test_the_gpu_benchmark_runs_and_finds_no_difference_on_the_simulator():
 
     (row,) = bench_gpu(sizes=(6,), steps=5)
     assert row["n"] == 6 and row["rate"] > 0 and row["q_difference"] == 0.0
+
+
+GOAL_CONFIGS = {
+    "wall": dict(),                 # goals beyond the wall: collisions end episodes
+    "free": dict(obstacle=False),   # goals reached
+}
+
+
+@pytest.mark.parametrize("autoreset_mode", ["NextStep", "SameStep"])
+@pytest.mark.parametrize("reward_type", ["sparse", "dense"])
+@pytest.mark.parametrize("name", GOAL_CONFIGS)
+def test_the_cuda_goal_env_is_the_cpu_goal_env_bit_for_bit(name, reward_type, autoreset_mode):
+    """Scara-C11-Goal-v0 on the device: the goal test ends episodes in the step kernel; rewards,
+    terms, success and the Dict observations (final ones too) are the CPU goal env's."""
+    from scara_gym.envs.goal import ScaraCudaGoalVectorEnv
+
+    n, steps = 3, 250
+    make = lambda **device: gym.make_vec(  # noqa: E731
+        "Scara-C11-Goal-v0", num_envs=n, vectorization_mode="vector_entry_point", autoreset_mode=autoreset_mode,
+        reward_type=reward_type, action_delay=1, **GOAL_CONFIGS[name], **device)
+    cpu, gpu = make(), make(device="cuda")
+    assert isinstance(gpu, ScaraCudaGoalVectorEnv)
+    assert gpu.single_observation_space == cpu.single_observation_space
+    for label, c, g in zip(("obs", "info"), cpu.reset(seed=3), gpu.reset(seed=3)):
+        assert_same(c, g, f"reset {label}")
+    rng = np.random.default_rng(1)
+    successes = collisions = 0
+    for k in range(steps):  # the set-point at the goal, kicked now and then
+        goals = np.array([cpu.unwrapped.task.setpoint_to_action(t) for t in cpu.unwrapped.targets])
+        actions = goals + rng.normal(0.0, 0.3, (n, 3)) * (rng.random((n, 1)) < 0.2)
+        cpu_out, gpu_out = cpu.step(actions), gpu.step(torch.from_numpy(actions))
+        for label, c, g in zip(("obs", "reward", "terminated", "truncated", "info"), cpu_out, gpu_out):
+            assert_same(c, g, f"step {k} {label}")
+        successes += int(cpu_out[4]["is_success"].sum())
+        collisions += int(cpu_out[4]["collision"].sum())
+    assert (collisions if name == "wall" else successes) > 0, (successes, collisions)
+
+
+def test_observation_noise_on_the_device_is_seeded_gaussian_and_leaves_the_physics_alone():
+    """The noise is drawn on the device (not the CPU env's draws): per entry zero-mean with
+    the configured std, inside the observation space, reproduced by the seed; rewards, flags
+    and the entries without noise are the noise-free env's."""
+    std = {"q": 0.01, "current": 0.05}
+    n, steps = 8, 60
+    make = lambda **extra: gym.make_vec("Scara-C11-v1", num_envs=n, vectorization_mode="vector_entry_point",  # noqa: E731
+                                        device="cuda", randomize_target=True, **extra)
+    clean, noisy, again = make(), make(observation_noise=std), make(observation_noise=std)
+    space = noisy.observation_space
+    layout = scara_gym.envs.OBSERVATION_LAYOUT
+    noisy_columns = np.zeros(space.shape[1], dtype=bool)
+    expected_std = np.zeros(space.shape[1])
+    for field, value in std.items():
+        noisy_columns[layout[field]] = True
+        expected_std[layout[field]] = value
+    runs = [env.reset(seed=7)[0].numpy() for env in (clean, noisy, again)]
+    differences, rng = [], np.random.default_rng(0)
+    for k in range(steps + 1):
+        obs_clean, obs_noisy, obs_again = runs
+        assert obs_noisy.dtype == np.float32 and space.contains(obs_noisy)
+        assert np.array_equal(obs_noisy, obs_again)  # the same seed, the same noise
+        assert np.array_equal(obs_noisy[:, ~noisy_columns], obs_clean[:, ~noisy_columns])
+        inside = (obs_clean > space.low + 0.2) & (obs_clean < space.high - 0.2)  # away from the clipping
+        differences.append(np.where(inside, obs_noisy.astype(np.float64) - obs_clean, np.nan)[:, noisy_columns])
+        if k == steps:
+            break
+        actions = np.array([2 / np.pi, 2 / np.pi, 0.5]) + rng.normal(0.0, 0.3, (n, 3))
+        outs = [env.step(actions) for env in (clean, noisy, again)]
+        for label, c, g in zip(("reward", "terminated", "truncated"), outs[0][1:4], outs[1][1:4]):
+            assert torch.equal(c, g), label
+        runs = [out[0].numpy() for out in outs]
+    differences = np.concatenate(differences)
+    measured = np.nanstd(differences, axis=0)
+    assert np.allclose(measured, expected_std[noisy_columns], rtol=0.2), measured
+    assert np.all(np.abs(np.nanmean(differences, axis=0)) < 4 * expected_std[noisy_columns] / np.sqrt(
+        np.sum(np.isfinite(differences), axis=0)))
+    # at reset every robot rests at the start: the q columns differ by the noise alone
+    q = layout["q"]
+    first, same, other = (noisy.reset(seed=s)[0].numpy()[:, q] for s in (7, 7, 8))
+    assert np.array_equal(first, same) and not np.array_equal(first, other)
+
+
+@pytest.mark.parametrize("env_id", scara_gym.ENV_IDS)
+def test_every_registered_id_has_the_cuda_backend(env_id):
+    """device="cuda" on every id, with the id's registered arguments: the CPU env's first steps."""
+    make = lambda **device: gym.make_vec(env_id, num_envs=3, vectorization_mode="vector_entry_point",  # noqa: E731
+                                         **device)
+    cpu, gpu = make(), make(device="cuda")
+    for label, c, g in zip(("obs", "info"), cpu.reset(seed=11), gpu.reset(seed=11)):
+        assert_same(c, g, f"reset {label}")
+    rng = np.random.default_rng(0)
+    for k in range(5):
+        actions = rng.uniform(-1.0, 1.0, (3, 3))
+        for label, c, g in zip(("obs", "reward", "terminated", "truncated", "info"), cpu.step(actions),
+                               gpu.step(actions)):
+            assert_same(c, g, f"step {k} {label}")
