@@ -13,7 +13,10 @@ randomized per episode (its "pd-dr" block) and ``ppo-residual-frugal`` with an e
 in the reward (its "pd-frugal" block). ``--shard K/N`` takes every N-th run starting at the K-th, so
 that N processes can share the list (one per core); without it, workers started side by
 side share it too: each run is locked (``RUN/.lock``) by the process training it, and a
-worker passes over runs that are finished or locked.
+worker passes over runs that are finished or locked. ``--publish DEST`` copies every finished
+run of the list to ``DEST/ENV_ID/MODE/ALGO/seedN`` with only what evaluating it needs (the
+model, its normalizer, config and evaluation history; no snapshots, checkpoints or logs), so
+that results can be committed (docs/results/runs) and outlive the machine that trained them.
 """
 
 from __future__ import annotations
@@ -22,6 +25,7 @@ import argparse
 import contextlib
 import fcntl
 import json
+import shutil
 import time
 from pathlib import Path
 
@@ -48,6 +52,29 @@ def run_lock(out: Path):
             yield True
         finally:
             fcntl.flock(handle, fcntl.LOCK_UN)
+
+
+PUBLISHED = ("config.json", "summary.json", "model.zip", "model.pt", "vecnormalize.pkl", "evaluation.npz",
+             "eval/evaluations.npz")
+"""the files of a finished run that evaluating and plotting it need (agents.compare)"""
+
+
+def is_finished(run: Path) -> bool:
+    """A run folder that holds a trained model (SB3's model.zip or agents.torch_ppo's model.pt)."""
+    run = Path(run)
+    return (run / "config.json").exists() and ((run / "model.zip").exists() or (run / "model.pt").exists())
+
+
+def publish(run: Path, dest: Path) -> Path:
+    """Copy a finished run's PUBLISHED files from ``run`` to ``dest`` (made, or refreshed)."""
+    run, dest = Path(run), Path(dest)
+    if not is_finished(run):
+        raise ValueError(f"{run} is not a finished run (no config.json with model.zip or model.pt)")
+    for name in PUBLISHED:
+        if (run / name).exists():
+            (dest / name).parent.mkdir(parents=True, exist_ok=True)
+            shutil.copy2(run / name, dest / name)
+    return dest
 
 
 def variant_of(algo: str) -> str | None:
@@ -99,6 +126,9 @@ def main(argv: list[str] | None = None) -> list[Path]:
     parser.add_argument("--runs", type=Path, default=Path("runs/baselines"))
     parser.add_argument("--total-timesteps", type=int, default=None, help="default: n_timesteps of the YAML")
     parser.add_argument("--shard", default="0/1", help="K/N: every N-th run, starting at the K-th (0-based)")
+    parser.add_argument("--publish", type=Path, default=None, metavar="DEST",
+                        help="copy the finished runs of the list, model and history only, to DEST (e.g. "
+                             "docs/results/runs), instead of training")
     args = parser.parse_args(argv)
     try:
         shard, shards = (int(x) for x in args.shard.split("/"))
@@ -108,6 +138,16 @@ def main(argv: list[str] | None = None) -> list[Path]:
     if any(seed < 0 for seed in args.seeds):
         parser.error(f"--seeds must be integers >= 0, got {args.seeds}")
     plan = [(algo, seed) for seed in args.seeds for algo in args.algos][shard::shards]
+    if args.publish is not None:
+        published = []
+        for algo, seed in plan:
+            run = run_dir(args.runs, args.env_id, args.control_mode, algo, seed)
+            if is_finished(run):
+                published.append(publish(run, run_dir(args.publish, args.env_id, args.control_mode, algo, seed)))
+                print(f"{algo} seed {seed}: published to {published[-1]}", flush=True)
+            else:
+                print(f"{algo} seed {seed}: not finished, not published", flush=True)
+        return published
     done = []
     for algo, seed in plan:
         started = time.perf_counter()

@@ -32,6 +32,7 @@ from pathlib import Path
 
 import numpy as np
 
+from agents.baselines import is_finished
 from agents.policies import DecHeuristic, PDPolicy, run_episode, smallest_safe_distance
 from scara_gym import DEFAULT_PARAMS, LATEST_ENV_ID
 
@@ -147,7 +148,7 @@ def learned_runs(runs_root: Path, env_id: str = LATEST_ENV_ID) -> dict[tuple[str
     groups: dict[tuple[str, str], list[Path]] = {}
     for config in sorted(Path(runs_root).glob(f"{env_id}/*/*/seed*/config.json")):
         run = config.parent
-        if (run / "model.zip").exists() or (run / "model.pt").exists():  # SB3, or agents.torch_ppo
+        if is_finished(run):  # SB3's model.zip, or agents.torch_ppo's model.pt
             groups.setdefault((run.parent.name, run.parent.parent.name), []).append(run)
     for key in groups:
         groups[key].sort(key=lambda p: int(p.name.removeprefix("seed")))

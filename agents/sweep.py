@@ -16,7 +16,10 @@ not trained again (so a sweep can be re-run to fill in what is missing).
 
 Writes ``OUT/sweep.json`` (the comparison's entry format, one entry per grid point, every
 seed listed) and ``OUT/sweep.md`` (the comparison's table), plus Ray's own records under
-``OUT/ray``. Ray is an install extra: ``pip install "scara_gym[sweep]"``.
+``OUT/ray``. ``--publish DEST`` then copies each finished trial's run (model and history
+only, agents.baselines.publish) to ``DEST/ENV_ID/MODE/ALGO/seedN`` (``ALGO_TAG`` for a grid
+point other than the default), where agents.compare finds it. Ray is an install extra:
+``pip install "scara_gym[sweep]"``.
 """
 
 from __future__ import annotations
@@ -30,7 +33,7 @@ from pathlib import Path
 
 import numpy as np
 
-from agents.baselines import ALGOS, hyperparams_of, train_run
+from agents.baselines import ALGOS, hyperparams_of, is_finished, publish, run_dir, train_run
 
 
 def parse_grid(items: list[str]) -> dict[str, list]:
@@ -200,13 +203,22 @@ def main(argv: list[str] | None = None) -> list[dict]:
     parser.add_argument("--address", default=None, help="an existing Ray cluster (default: a local runtime)")
     parser.add_argument("--cpus-per-trial", type=float, default=1.0)
     parser.add_argument("--max-failures", type=int, default=2, help="retries of a failed trial")
+    parser.add_argument("--publish", type=Path, default=None, metavar="DEST",
+                        help="copy the finished trials' runs to DEST/ENV_ID/MODE/ALGO/seedN (e.g. docs/results/runs)")
     args = parser.parse_args(argv)
     from scara_gym import LATEST_ENV_ID
 
-    entries = run_sweep(args.algo, args.env_id or LATEST_ENV_ID, args.control_mode, args.seeds,
-                        parse_grid(args.grid), args.out, args.condition, args.episodes, args.total_timesteps,
-                        args.address, args.cpus_per_trial, args.max_failures)
+    env_id, grid = args.env_id or LATEST_ENV_ID, parse_grid(args.grid)
+    entries = run_sweep(args.algo, env_id, args.control_mode, args.seeds, grid, args.out, args.condition,
+                        args.episodes, args.total_timesteps, args.address, args.cpus_per_trial, args.max_failures)
     print((args.out / "sweep.md").read_text())
+    if args.publish is not None:
+        for point in grid_points(grid):
+            name = args.algo if not point else f"{args.algo}_{tag(point)}"
+            for seed in args.seeds:
+                run = args.out / "runs" / tag(point) / f"seed{seed}"
+                if is_finished(run):
+                    print("published:", publish(run, run_dir(args.publish, env_id, args.control_mode, name, seed)))
     return entries
 
 

@@ -34,6 +34,19 @@ def test_comparison_command_writes_every_policy(tmp_path):
     from agents.torch_ppo import Config, train as train_torch_ppo
     train_torch_ppo(Config(num_envs=2, num_steps=8, num_minibatches=1, update_epochs=1, total_timesteps=16, seed=3,
                            out=str(runs / "Scara-C11-v1" / "pd" / "torch-ppo" / "seed3")))
+    # what is committed (docs/results/runs): the finished runs, model and history only
+    published = tmp_path / "published"
+    from agents import baselines
+    assert len(baselines.main(["--algos", "td3", "--seeds", "0", "1", "2", "--runs", str(runs),
+                               "--publish", str(published)])) == 2  # seed 2 never ran
+    baselines.publish(runs / "Scara-C11-v1" / "pd" / "torch-ppo" / "seed3",
+                      published / "Scara-C11-v1" / "pd" / "torch-ppo" / "seed3")
+    files = {p.relative_to(published).as_posix() for p in published.rglob("*") if p.is_file()}
+    assert "Scara-C11-v1/pd/td3/seed1/eval/evaluations.npz" in files
+    assert not any(part in ("tb", "snapshot", "checkpoints") for f in files for part in f.split("/")), files
+    with pytest.raises(ValueError, match="not a finished run"):
+        baselines.publish(runs / "Scara-C11-v1" / "pd" / "td3" / "seed2", tmp_path / "nowhere")
+    runs = published
     out = tmp_path / "results"
     entries, traces = compare.compare(runs, ["c11"], episodes=2, verbose=False, bisection_tolerance=0.01)
     names = [e["name"] for e in entries]
