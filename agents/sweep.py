@@ -80,7 +80,8 @@ def train_and_evaluate(algo: str, env_id: str, control_mode: str, seed: int, ove
     train_run(algo, out, seed, env_id, control_mode, total_timesteps,
               hyperparams=point_hyperparams(algo, env_id, control_mode, overrides))
     env = make_env(CONDITIONS[condition], control_mode, env_id)
-    runs = episodes_of(env, SB3Policy(env, out), episodes, seed=1000)
+    runs = episodes_of(env, SB3Policy(env, out), episodes, seed=1000,
+                       identical=not CONDITIONS[condition].randomize_target)
     config = json.loads((out / "config.json").read_text())
     return {**{k: v for k, v in runs.items() if k != "trace"}, "train_seconds": config["train_seconds"]}
 

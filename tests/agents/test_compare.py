@@ -24,6 +24,22 @@ def test_iqm_and_probability_of_improvement_on_known_scores():
     assert tie == 0.5
 
 
+def test_a_condition_without_draws_runs_its_one_episode_once():
+    """episodes_of(identical=True): the first episode stands for all where the first two are
+    the same (a deterministic policy, nothing drawn), and every episode runs where they differ."""
+    from agents.policies import DecHeuristic
+
+    fixed = compare.make_env(compare.CONDITIONS["c11"], "pd")
+    policy = DecHeuristic(fixed, "continue", critical_distance=0.07)
+    full, short = (compare.episodes_of(fixed, policy, 4, seed=1000, identical=same) for same in (False, True))
+    for key in ("success", "collisions", "reach_time", "energy"):
+        assert np.array_equal(full[key], short[key], equal_nan=True), key
+    drawn = compare.make_env(compare.CONDITIONS["random-targets"], "pd")
+    policy = DecHeuristic(drawn, "continue", critical_distance=0.07)
+    runs = compare.episodes_of(drawn, policy, 4, seed=1000, identical=True)
+    assert len(set(runs["energy"].tolist())) == 4  # other targets: every episode ran
+
+
 def test_comparison_command_writes_every_policy(tmp_path):
     runs = tmp_path / "runs"
     hyper = training.load_hyperparams("td3")
