@@ -26,6 +26,7 @@ from scara_gym.model import checks
 
 REWARD_TYPES = ("sparse", "dense")
 GOAL_SLACK = 1e-6
+MAX_GOAL_TOLERANCE = 1.0  # [rad and m]
 """[rad or m] added to acc in the goal test: covers the float32 rounding of the goals, so
 that the located C11 event (all |q_i - q^_i| < acc) always passes the test on the goals"""
 # the goal-free observation: the target error would tie it to the goal HER replaces
@@ -66,10 +67,14 @@ class GoalOutcome(NamedTuple):
 class GoalRules:
     """Reward, success and episode end of the goal task as functions of the goals (batched)."""
 
-    def __init__(self, reward_type: str, collision_penalty: float, accuracy: float, collision_mode: str) -> None:
+    def __init__(self, reward_type: str, collision_penalty: float, accuracy: float, collision_mode: str,
+                 goal_tolerance: float | None = None) -> None:
         self.reward_type = checks.choice("reward_type", reward_type, REWARD_TYPES)
         self.collision_penalty = checks.real("collision_penalty", collision_penalty, 0.0, 1e6)
-        self.threshold = accuracy + GOAL_SLACK
+        self.tolerance = accuracy if goal_tolerance is None else checks.real(
+            "goal_tolerance", goal_tolerance, accuracy, MAX_GOAL_TOLERANCE,
+            unit="rad and m, at least the task's accuracy acc")
+        self.threshold = self.tolerance + GOAL_SLACK
         self.terminate_on_collision = collision_mode == "terminate"
 
     def outcome(self, achieved_goal, desired_goal, info) -> GoalOutcome:
@@ -173,9 +178,10 @@ class ScaraGoalEnv(_GoalAPI, ScaraEnv):
 
     ## Episode end
 
-    - terminated: the goal is reached: max_i |achieved_i - desired_i| < acc + 1e-6 on the
-      goals (acc = 0.001; the slack covers float32 rounding, so that the C11 event located
-      inside the step always passes), or a collision with ``collision="terminate"``;
+    - terminated: the goal is reached: max_i |achieved_i - desired_i| < tol + 1e-6 on the
+      goals (tol = ``goal_tolerance``, by default the C11 accuracy acc = 0.001; the slack
+      covers float32 rounding, so that the C11 event located inside the step always passes),
+      or a collision with ``collision="terminate"``;
       ``compute_terminated`` gives the same over a batch.
     - truncated: only by the time limit, ``max_episode_steps=300`` (3 s) as registered;
       ``compute_truncated`` is False for every transition.
@@ -191,6 +197,9 @@ class ScaraGoalEnv(_GoalAPI, ScaraEnv):
     - collision_penalty (50.0): the collision term's weight, in [0, 1e6]; with
       collision="terminate" a collision ends the episode, so the penalty must outweigh
       the sparse reward's steps it saves for a collision not to pay.
+    - goal_tolerance (None): tol of the goal test [rad for q1, q2; m for q3], in
+      [acc, 1]; None: acc = 0.001, the C11 task. A looser goal (Gymnasium-Robotics'
+      distance_threshold) makes an easier task, e.g. for a curriculum.
     - control_mode ("pd"): "pd" or "voltage", as ScaraEnv.
     - obstacle (True): the wall of task c and the widened voltage near it.
     - collision ("terminate"): "terminate" or "penalty" (the arm passes through).
@@ -218,8 +227,8 @@ class ScaraGoalEnv(_GoalAPI, ScaraEnv):
     env_id = "Scara-C11-Goal-v0"
     observation_names = GOAL_OBSERVATION_NAMES
 
-    def __init__(self, reward_type: str = "sparse", collision_penalty: float = 50.0, control_mode: str = "pd",
-                 obstacle: bool = True, collision: str = "terminate", target=None, start=None,
+    def __init__(self, reward_type: str = "sparse", collision_penalty: float = 50.0,
+                 goal_tolerance: float | None = None, control_mode: str = "pd", obstacle: bool = True, collision: str = "terminate", target=None, start=None,
                  randomize_target: bool = True, control_dt: float = 0.01, time_limit: float = 3.0,
                  params=None, rtol: float = 1e-6, atol: float = 1e-8, exact_switches: bool = True,
                  randomize_params=False, observation_noise: dict | None = None, action_delay: int = 0,
@@ -230,7 +239,8 @@ class ScaraGoalEnv(_GoalAPI, ScaraEnv):
                          exact_switches=exact_switches, randomize_params=randomize_params,
                          observation_noise=observation_noise, action_delay=action_delay,
                          action_rate_limit=action_rate_limit, render_mode=render_mode)
-        self.rules = GoalRules(reward_type, collision_penalty, self.params.task.accuracy, self.collision_mode)
+        self.rules = GoalRules(reward_type, collision_penalty, self.params.task.accuracy, self.collision_mode,
+                               goal_tolerance)
         self.observation_space = _goal_spaces(self.task)
 
     reward_type = property(lambda self: self.rules.reward_type)
@@ -259,22 +269,23 @@ def _with_goal_defaults(kwargs: dict) -> dict:
     """Environment arguments with ScaraGoalEnv's defaults where not given (its physics and its
     goals drawn per episode, not ScaraEnv's)."""
     defaults = {name: p.default for name, p in inspect.signature(ScaraGoalEnv.__init__).parameters.items()
-                if name not in ("self", "reward_type", "collision_penalty", "render_mode")}
+                if name not in ("self", "reward_type", "collision_penalty", "goal_tolerance", "render_mode")}
     return {**defaults, **kwargs}
 
 
 class ScaraGoalVectorEnv(_GoalAPI, ScaraVectorEnv):
     """N copies of Scara-C11-Goal-v0 stepped in parallel (ScaraVectorEnv's arguments plus
-    reward_type and collision_penalty). Observations are a dict of batched arrays; with
+    reward_type, collision_penalty and goal_tolerance). Observations are a dict of batched arrays; with
     ``autoreset_mode="SameStep"`` ``info["final_obs"]`` is such a dict too (zero for the
     robots that did not end). Robot i is the single env seeded seed + i."""
 
     def __init__(self, num_envs: int = 1, max_episode_steps: int = 300,
                  autoreset_mode: str | AutoresetMode = AutoresetMode.NEXT_STEP, num_threads: int | None = None,
-                 reward_type: str = "sparse", collision_penalty: float = 50.0, **kwargs) -> None:
+                 reward_type: str = "sparse", collision_penalty: float = 50.0, goal_tolerance: float | None = None,
+                 **kwargs) -> None:
         super().__init__(num_envs, max_episode_steps, autoreset_mode, num_threads, **_with_goal_defaults(kwargs))
         self.rules = GoalRules(reward_type, collision_penalty, self.task.params.task.accuracy,
-                               self.task.collision_mode)
+                               self.task.collision_mode, goal_tolerance)
         self.single_observation_space = _goal_spaces(self.task)
         self.observation_space = batch_space(self.single_observation_space, self.num_envs)
 
@@ -302,8 +313,8 @@ def make_goal_vector_env(num_envs: int = 1, device: str = "cpu", **kwargs):
 
 class ScaraCudaGoalVectorEnv(_GoalAPI, ScaraCudaVectorEnv):
     """Scara-C11-Goal-v0 on the GPU: N robots of ScaraGoalVectorEnv stepped by the CUDA
-    backend (ScaraCudaVectorEnv's arguments plus reward_type and collision_penalty).
-    Observations are a dict of tensors, rewards, flags and info tensors; robot i is
+    backend (ScaraCudaVectorEnv's arguments plus reward_type, collision_penalty and
+    goal_tolerance). Observations are a dict of tensors, rewards, flags and info tensors; robot i is
     ScaraGoalVectorEnv's robot i bit for bit on numba's CUDA simulator. The goal test
     ends episodes inside the step kernel (core.vector_robot_step's goal_threshold);
     rewards and terms are the goal rules on tensors. compute_reward and friends take
@@ -311,10 +322,11 @@ class ScaraCudaGoalVectorEnv(_GoalAPI, ScaraCudaVectorEnv):
 
     def __init__(self, num_envs: int = 1, max_episode_steps: int = 300,
                  autoreset_mode: str | AutoresetMode = AutoresetMode.NEXT_STEP,
-                 reward_type: str = "sparse", collision_penalty: float = 50.0, **kwargs) -> None:
+                 reward_type: str = "sparse", collision_penalty: float = 50.0, goal_tolerance: float | None = None,
+                 **kwargs) -> None:
         super().__init__(num_envs, max_episode_steps, autoreset_mode, **_with_goal_defaults(kwargs))
         self.rules = GoalRules(reward_type, collision_penalty, self.task.params.task.accuracy,
-                               self.task.collision_mode)
+                               self.task.collision_mode, goal_tolerance)
         self._goal_threshold = self.rules.threshold
         self._scale = self._torch.from_numpy(DISTANCE_SCALE).to(self.device)
         self.single_observation_space = _goal_spaces(self.task)

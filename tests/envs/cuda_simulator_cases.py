@@ -162,6 +162,7 @@ def test_the_gpu_benchmark_runs_and_finds_no_difference_on_the_simulator():
 GOAL_CONFIGS = {
     "wall": dict(),                 # goals beyond the wall: collisions end episodes
     "free": dict(obstacle=False),   # goals reached
+    "loose": dict(obstacle=False, goal_tolerance=0.05),  # the kernel's goal test at another tolerance
 }
 
 
@@ -193,6 +194,8 @@ def test_the_cuda_goal_env_is_the_cpu_goal_env_bit_for_bit(name, reward_type, au
         successes += int(cpu_out[4]["is_success"].sum())
         collisions += int(cpu_out[4]["collision"].sum())
     assert (collisions if name == "wall" else successes) > 0, (successes, collisions)
+    if name == "loose":  # the kernel ran the goal test at this threshold
+        assert gpu.unwrapped.rules.threshold == 0.05 + 1e-6
 
 
 def test_observation_noise_on_the_device_is_seeded_gaussian_and_leaves_the_physics_alone():

@@ -161,3 +161,30 @@ def test_the_card_matches_the_spaces_and_arguments():
         ScaraGoalEnv(reward_type="shaped")
     with pytest.raises(ValueError, match=r"collision_penalty must be a finite number in \[0, 1e\+06\]"):
         ScaraGoalEnv(collision_penalty=-1.0)
+
+
+def test_a_looser_goal_tolerance_ends_episodes_earlier_and_relabels_with_it():
+    """goal_tolerance: the goal test's tol (the C11 acc by default); PD straight at the goal
+    without the wall passes within 0.05 before it reaches acc."""
+    ends = {}
+    for tolerance in (None, 0.05):
+        env = gym.make(GOAL, obstacle=False, goal_tolerance=tolerance)
+        obs, _ = env.reset(seed=2)
+        action = env.unwrapped.setpoint_to_action(obs["desired_goal"]).astype(np.float32)
+        for step in range(1, 301):
+            obs, reward, terminated, truncated, info = env.step(action)
+            if terminated or truncated:
+                break
+        gap = np.abs(obs["achieved_goal"].astype(np.float64) - obs["desired_goal"]).max()
+        assert terminated and info["is_success"] and reward == 0.0
+        assert gap < (0.05 if tolerance else 0.001) + 1e-6
+        assert env.unwrapped.compute_reward(obs["achieved_goal"], obs["desired_goal"], info) == 0.0
+        ends[tolerance] = (step, gap)
+    assert ends[0.05][0] < ends[None][0] and ends[0.05][1] > 0.001  # ended on the looser test, earlier
+    loose = ScaraGoalEnv(goal_tolerance=0.05)
+    near = np.zeros((2, 3), dtype=np.float32)
+    np.testing.assert_array_equal(loose.compute_reward(near, near + np.float32(0.04), None), [0.0, 0.0])
+    np.testing.assert_array_equal(loose.compute_reward(near, near + np.float32(0.06), None), [-1.0, -1.0])
+    for bad in (0.0005, 2.0, float("nan")):
+        with pytest.raises(ValueError, match=r"goal_tolerance must be a finite number in \[0.001, 1\]"):
+            ScaraGoalEnv(goal_tolerance=bad)
