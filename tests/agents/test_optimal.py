@@ -76,6 +76,24 @@ def test_shipped_solution_file_is_complete():
         assert actions.shape[1] == 3 and np.all(np.abs(actions) <= 1 + 1e-7)
 
 
+def test_every_shipped_solution_replays_in_its_own_condition():
+    """The C11 target under the comparison's parameter shifts (agents.compare.CONDITIONS):
+    each shipped solution, replayed with its condition's parameters, succeeds without a
+    collision at its recorded time, above that condition's free bound."""
+    from agents.compare import CONDITIONS
+    from scara_gym import DEFAULT_PARAMS
+
+    for path in sorted(SOLUTIONS.glob("*.json")):
+        data = json.loads(path.read_text())
+        params = DEFAULT_PARAMS.replace(CONDITIONS[data.get("condition", "c11")].params)
+        assert cached_solution(data["start"], data["target"], params) == data, path.name
+        result = replay(np.array(data["held"]["actions"]), start=data["start"], target=data["target"],
+                        params=params)
+        assert result["success"] and result["collisions"] == 0, path.name
+        assert result["reach_time"] == pytest.approx(data["replay"]["reach_time"], abs=1e-9), path.name
+        assert data["free"]["time"] <= result["reach_time"], path.name
+
+
 @pytest.mark.slow
 def test_free_problem_reproduces_the_spec_bound():
     """The continuous-time problem solved from scratch (the heuristic's path as the guess)."""
