@@ -63,13 +63,22 @@ CONDITIONS = {c.name: c for c in (
 )}
 
 
-def make_env(condition: Condition, control_mode: str, env_id: str = LATEST_ENV_ID):
+TASK_KWARGS = ("goal_tolerance",)
+"""environment arguments that define the task a run trains for (not its reward or its physics):
+an evaluation that uses a run's own reports them beside the benchmark's"""
+
+
+def make_env(condition: Condition, control_mode: str, env_id: str = LATEST_ENV_ID, **task):
+    """The condition's environment; task: TASK_KWARGS to set (default: the benchmark's own)."""
     import gymnasium as gym
 
     import scara_gym  # noqa: F401
 
+    unknown = sorted(set(task) - set(TASK_KWARGS))
+    if unknown:
+        raise ValueError(f"task arguments must be among {TASK_KWARGS}, got {unknown}")
     return gym.make(env_id, control_mode=control_mode, randomize_target=condition.randomize_target,
-                    params=DEFAULT_PARAMS.replace(condition.params))
+                    params=DEFAULT_PARAMS.replace(condition.params), **task)
 
 
 SUMMARY_KEYS = ("success", "collisions", "reach_time", "energy", "steps")

@@ -70,20 +70,35 @@ def point_hyperparams(algo: str, env_id: str, control_mode: str, point: dict) ->
     return {**hyper, **point}
 
 
+EPISODE_ARRAYS = ("success", "collisions", "reach_time", "energy")
+
+
+def task_kwargs(hyper: dict) -> dict:
+    """The task-defining environment arguments a run trains with (agents.compare.TASK_KWARGS)."""
+    from agents.compare import TASK_KWARGS
+
+    return {k: v for k, v in hyper.get("env_kwargs", {}).items() if k in TASK_KWARGS}
+
+
 def train_and_evaluate(algo: str, env_id: str, control_mode: str, seed: int, overrides: dict, out: Path,
                        condition: str, episodes: int, total_timesteps: int | None = None) -> dict:
     """One trial: train (or resume, or find finished) the run in ``out``, evaluate it; returns
-    the per-episode arrays of agents.compare plus the training seconds."""
+    the per-episode arrays of agents.compare plus the training seconds. A run that trains for
+    another task than the benchmark's (task_kwargs: e.g. a looser goal_tolerance) is evaluated
+    in its own task and in the benchmark's, the latter's arrays prefixed "benchmark_"."""
     from agents.compare import CONDITIONS, episodes_of, make_env
     from agents.training import SB3Policy
 
-    train_run(algo, out, seed, env_id, control_mode, total_timesteps,
-              hyperparams=point_hyperparams(algo, env_id, control_mode, overrides))
-    env = make_env(CONDITIONS[condition], control_mode, env_id)
-    runs = episodes_of(env, SB3Policy(env, out), episodes, seed=1000,
-                       identical=not CONDITIONS[condition].randomize_target)
-    config = json.loads((out / "config.json").read_text())
-    return {**{k: v for k, v in runs.items() if k != "trace"}, "train_seconds": config["train_seconds"]}
+    hyper = point_hyperparams(algo, env_id, control_mode, overrides)
+    train_run(algo, out, seed, env_id, control_mode, total_timesteps, hyperparams=hyper)
+    task = task_kwargs(hyper)
+    result = {"train_seconds": json.loads((out / "config.json").read_text())["train_seconds"]}
+    for prefix, kwargs in (("", task), ("benchmark_", {})) if task else (("", {}),):
+        env = make_env(CONDITIONS[condition], control_mode, env_id, **kwargs)
+        runs = episodes_of(env, SB3Policy(env, out), episodes, seed=1000,
+                           identical=not CONDITIONS[condition].randomize_target)
+        result.update({prefix + key: runs[key] for key in EPISODE_ARRAYS})
+    return result
 
 
 def _trial(config: dict) -> None:
@@ -157,19 +172,29 @@ def run_sweep(algo: str, env_id: str, control_mode: str, seeds: list[int], grid:
                            "error": re.sub(r"\x1b\[[0-9;]*m", "", str(result.error))})
     entries = []
     for point in points:
-        seeds_done, runs, seconds = [], [], []
+        task = task_kwargs(point_hyperparams(algo, env_id, control_mode, point))
+        seeds_done, runs, benchmark, seconds = [], [], [], []
         for seed in seeds:
             path = out / "runs" / tag(point) / f"seed{seed}" / "evaluation.npz"
             if path.exists() and not any(f["point"] == point and f["seed"] == seed for f in failed):
                 with np.load(path) as data:
-                    runs.append({k: data[k] for k in ("success", "collisions", "reach_time", "energy")})
+                    runs.append({k: data[k] for k in EPISODE_ARRAYS})
+                    if task:
+                        benchmark.append({k: data["benchmark_" + k] for k in EPISODE_ARRAYS})
                     seconds.append(float(data["train_seconds"]))
                 seeds_done.append(seed)
         missing = [s for s in seeds if s not in seeds_done]
         note = f"failed seeds: {missing}" if missing else ""
-        if runs:
-            entries.append({**entry(f"{algo} {tag(point)}", "learned", algo, control_mode, condition, runs,
-                                    seeds_done, note=note, train_seconds=seconds), "hyperparameters": point})
+        if not runs:
+            continue
+        own = ", ".join(f"{k}={v}" for k, v in task.items())
+        name = f"{algo} {tag(point)}" + (f" ({own}: its own task)" if task else "")
+        entries.append({**entry(name, "learned", algo, control_mode, condition, runs, seeds_done, note=note,
+                                train_seconds=seconds), "hyperparameters": point, "task": task})
+        if task:
+            entries.append({**entry(f"{algo} {tag(point)} (the benchmark's task)", "learned", algo, control_mode,
+                                    condition, benchmark, seeds_done, note=f"trained with {own}",
+                                    train_seconds=seconds), "hyperparameters": point, "task": {}})
     (out / "sweep.json").write_text(json.dumps({"algo": algo, "env_id": env_id, "grid": grid, "seeds": seeds,
                                                "condition": condition, "policies": entries, "failed": failed},
                                                indent=2))

@@ -48,3 +48,20 @@ def test_a_two_trial_local_sweep_reports_the_trial_that_trains_and_the_one_that_
 def test_unknown_grid_names_are_refused_before_any_trial(tmp_path):
     with pytest.raises(ValueError, match=r"--grid names \['learning_rat'\]"):
         sweep.run_sweep("sac", "Scara-C11-v1", "pd", seeds=[0], grid={"learning_rat": [0.1]}, out=tmp_path)
+
+
+def test_a_run_trained_for_a_looser_goal_is_evaluated_in_its_task_and_the_benchmarks(tmp_path):
+    """The HER block trains Scara-C11-Goal-v0 with goal_tolerance 0.05: its trial evaluates the
+    run there and at the benchmark's own goal test, and the sweep lists both."""
+    from agents.baselines import hyperparams_of
+
+    assert sweep.task_kwargs(hyperparams_of("sac", "Scara-C11-Goal-v0")) == {"goal_tolerance": 0.05}
+    assert sweep.task_kwargs(hyperparams_of("ppo", "Scara-C11-v1")) == {}
+    tiny = {"learning_starts": 310, "eval_freq": 400, "eval_episodes": 1, "snapshot_freq": 400, "buffer_size": 2000}
+    result = sweep.train_and_evaluate("sac", "Scara-C11-Goal-v0", "pd", 0, tiny, tmp_path / "run", "random-targets",
+                                      episodes=2, total_timesteps=500)
+    assert set(result) == {"train_seconds", *sweep.EPISODE_ARRAYS, *("benchmark_" + k for k in sweep.EPISODE_ARRAYS)}
+    assert result["success"].shape == result["benchmark_success"].shape == (2,)
+    with pytest.raises(ValueError, match="task arguments must be among"):
+        from agents.compare import CONDITIONS, make_env
+        make_env(CONDITIONS["c11"], "pd", "Scara-C11-v1", reward_type="dense")
