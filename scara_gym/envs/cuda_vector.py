@@ -316,9 +316,12 @@ class ScaraCudaVectorEnv(VectorEnv):
         n = self.num_envs
         given = self._device_actions(actions)
         same_step = self.autoreset_mode == AutoresetMode.SAME_STEP
-        # robots that begin an episode instead of stepping (NextStep autoreset)
-        resetting = torch.zeros(n, dtype=torch.bool, device=self.device) if same_step \
-            else self._tensor(self.d_prev_done).clone()
+        # robots that begin an episode instead of stepping (NextStep autoreset): only the
+        # actuator and the goal rules need them, so the plain env's hot path reads nothing
+        resetting = None
+        if self.actuator is not None or self._goal_threshold > 0.0:
+            resetting = torch.zeros(n, dtype=torch.bool, device=self.device) if same_step \
+                else self._tensor(self.d_prev_done).clone()
         applied = given
         if self.actuator is not None:  # the delay line and the slew limit see the clipped action
             clipped_given = (given.abs() > 1.0).sum(dim=1)
