@@ -56,7 +56,7 @@ class Config:
     clip_obs: float = 10.0
     env_threads: int = 1           # numba threads of the CPU env (torch takes the cores between steps)
     torch_threads: int = 0         # 0: torch's default
-    compile: bool = False          # torch.compile the minibatch loss (forward and backward)
+    compile: bool = False          # torch.compile the minibatch gradient
     checkpoint_every: int = 10     # updates between checkpoints
     out: str = "runs/torch_ppo"
 
@@ -141,6 +141,106 @@ class Agent(nn.Module):
         return action, log_prob, entropy, value
 
 
+def share_one_tensor(parameters) -> torch.Tensor:
+    """Rebinds the parameters as views of one flat tensor and returns it: the gradient clip and
+    each step of Adam are then one tensor operation instead of one per parameter."""
+    flat = torch.cat([p.detach().reshape(-1) for p in parameters])
+    offset = 0
+    for p in parameters:
+        p.data = flat[offset:offset + p.numel()].view_as(p)
+        offset += p.numel()
+    return flat
+
+
+class Adam:
+    """Adam (Kingma and Ba; torch.optim.Adam's arithmetic, tests hold it to it) on a list of
+    tensors in foreach form: torch.optim's step spends more on bookkeeping than on these small
+    tensors."""
+
+    def __init__(self, params: list[torch.Tensor], lr: float, eps: float = 1e-8, betas=(0.9, 0.999)) -> None:
+        self.params, self.lr, self.eps, self.betas = params, lr, eps, betas
+        self.exp_avg = [torch.zeros_like(p) for p in params]
+        self.exp_avg_sq = [torch.zeros_like(p) for p in params]
+        self.steps = 0
+
+    @torch.no_grad()
+    def step(self, grads: list[torch.Tensor]) -> None:
+        beta1, beta2 = self.betas
+        self.steps += 1
+        torch._foreach_lerp_(self.exp_avg, grads, 1 - beta1)
+        torch._foreach_mul_(self.exp_avg_sq, beta2)
+        torch._foreach_addcmul_(self.exp_avg_sq, grads, grads, 1 - beta2)
+        denominator = torch._foreach_sqrt(self.exp_avg_sq)
+        torch._foreach_div_(denominator, (1 - beta2 ** self.steps) ** 0.5)
+        torch._foreach_add_(denominator, self.eps)
+        torch._foreach_addcdiv_(self.params, self.exp_avg, denominator, -self.lr / (1 - beta1 ** self.steps))
+
+    def state_dict(self) -> dict:
+        return {"exp_avg": self.exp_avg, "exp_avg_sq": self.exp_avg_sq, "steps": self.steps, "lr": self.lr}
+
+    def load_state_dict(self, state: dict) -> None:
+        for mine, saved in ((self.exp_avg, state["exp_avg"]), (self.exp_avg_sq, state["exp_avg_sq"])):
+            torch._foreach_copy_(mine, saved)
+        self.steps, self.lr = state["steps"], state["lr"]
+
+
+def ppo_loss(agent: Agent, x, actions, old_logprobs, advantages, returns, config: Config):
+    """PPO's clipped objective, the value loss and the entropy bonus on one minibatch (the
+    definition; training takes its gradient from ppo_gradients)."""
+    _, logprob, entropy, value = agent.act(x, actions)
+    ratio = (logprob - old_logprobs).exp()
+    advantages = (advantages - advantages.mean()) / (advantages.std() + 1e-8)
+    policy_loss = torch.max(-advantages * ratio,
+                            -advantages * ratio.clamp(1 - config.clip_coef, 1 + config.clip_coef)).mean()
+    value_loss = 0.5 * ((value - returns) ** 2).mean()
+    return policy_loss - config.ent_coef * entropy.mean() + config.vf_coef * value_loss
+
+
+@torch.no_grad()
+def ppo_gradients(agent: Agent, x, actions, old_logprobs, advantages, returns, config: Config,
+                  with_stats: bool = False):
+    """The gradient of ppo_loss by the chain rule through the loss and the batched MLP (tests
+    hold it to autograd's), as {parameter name: gradient}; with_stats, also (policy loss, value
+    loss, clip fraction) as tensors."""
+    batch = x.shape[0]
+    # forward, keeping the activations
+    h0 = x.expand(2, *x.shape)
+    (w1, w2, w3), (b1, b2, b3) = agent.weights, agent.biases
+    a1 = torch.tanh(torch.baddbmm(b1, h0, w1))
+    a2 = torch.tanh(torch.baddbmm(b2, a1, w2))
+    out = torch.baddbmm(b3, a2, w3)
+    mean, value = out[0], out[1, :, 0]
+    log_std = agent.actor_logstd
+    std = log_std.exp()
+    z = (actions - mean) / std  # the action in standard units
+    logprob = (-0.5 * z ** 2 - log_std - LOG_SQRT_2PI).sum(-1)
+    ratio = (logprob - old_logprobs).exp()
+    advantages = (advantages - advantages.mean()) / (advantages.std() + 1e-8)
+    unclipped_loss = -advantages * ratio
+    clipped_loss = -advantages * ratio.clamp(1 - config.clip_coef, 1 + config.clip_coef)
+    value_error = value - returns
+    # backward. d loss / d log prob = -A r / B where the unclipped term is the larger; the two are
+    # equal only inside the clip range (or where A = 0), where torch.max and clamp pass the whole
+    # gradient too
+    d_logprob = torch.where(unclipped_loss >= clipped_loss, unclipped_loss / batch, 0.0)
+    d_mean = d_logprob[:, None] * z / std
+    d_value = config.vf_coef / batch * value_error
+    d_out = torch.stack([d_mean, torch.nn.functional.pad(d_value[:, None], (0, d_mean.shape[1] - 1))])
+    d_log_std = (d_logprob[:, None] * (z ** 2 - 1.0)).sum(0) - config.ent_coef
+    d_w3, d_b3 = torch.bmm(a2.transpose(1, 2), d_out), d_out.sum(1, keepdim=True)
+    d_z2 = torch.bmm(d_out, w3.transpose(1, 2)) * (1.0 - a2 ** 2)
+    d_w2, d_b2 = torch.bmm(a1.transpose(1, 2), d_z2), d_z2.sum(1, keepdim=True)
+    d_z1 = torch.bmm(d_z2, w2.transpose(1, 2)) * (1.0 - a1 ** 2)
+    d_w1, d_b1 = torch.bmm(h0.transpose(1, 2), d_z1), d_z1.sum(1, keepdim=True)
+    grads = {"weights.0": d_w1, "weights.1": d_w2, "weights.2": d_w3, "biases.0": d_b1, "biases.1": d_b2,
+             "biases.2": d_b3, "actor_logstd": d_log_std}
+    if not with_stats:
+        return grads
+    policy_loss = torch.max(unclipped_loss, clipped_loss).mean()
+    clip_fraction = ((ratio - 1.0).abs() > config.clip_coef).float().mean()
+    return grads, (policy_loss, 0.5 * (value_error ** 2).mean(), clip_fraction)
+
+
 def make_env(config: Config):
     return gym.make_vec(config.env_id, num_envs=config.num_envs, vectorization_mode="vector_entry_point",
                         autoreset_mode="SameStep", control_mode=config.control_mode,
@@ -168,7 +268,9 @@ def train(config: Config, resume: bool = False) -> dict:
     device = getattr(envs.unwrapped, "device", device)
     obs_size, action_size = envs.single_observation_space.shape[0], envs.single_action_space.shape[0]
     agent = Agent(obs_size, action_size, config.hidden_size, config.clip_obs).to(device)
-    optimizer = torch.optim.Adam(agent.parameters(), lr=config.learning_rate, eps=1e-5, fused=True)
+    names, parameters = zip(*agent.named_parameters())
+    flat = share_one_tensor(parameters)
+    optimizer = Adam([flat], lr=config.learning_rate, eps=1e-5)
     return_rms = RunningMeanStd().to(device)
     num_updates = max(1, config.total_timesteps // config.batch_size)
     start_update, global_step, train_seconds = 1, 0, 0.0
@@ -182,20 +284,22 @@ def train(config: Config, resume: bool = False) -> dict:
     (out / "config.json").write_text(json.dumps(dataclasses.asdict(config), indent=2))
     writer = SummaryWriter(str(out / "tb"))
 
-    def minibatch_loss(obs, actions, old_logprobs, advantages, returns):
-        """PPO's clipped objective, the value loss and the entropy bonus on one minibatch."""
-        _, new_logprob, entropy, new_value = agent.act(obs, actions)
-        ratio = (new_logprob - old_logprobs).exp()
-        advantages = (advantages - advantages.mean()) / (advantages.std() + 1e-8)
-        policy_loss = torch.max(-advantages * ratio,
-                                -advantages * ratio.clamp(1 - config.clip_coef, 1 + config.clip_coef)).mean()
-        value_loss = 0.5 * ((new_value - returns) ** 2).mean()
-        loss = policy_loss - config.ent_coef * entropy.mean() + config.vf_coef * value_loss
-        clip_fraction = ((ratio.detach() - 1.0).abs() > config.clip_coef).float().mean()
-        return loss, policy_loss, value_loss, clip_fraction
+    def minibatch_update(obs, actions, old_logprobs, advantages, returns, with_stats=False):
+        """One Adam step on PPO's loss over a minibatch, with the gradient written out
+        (ppo_gradients): on a CPU these tiny networks are bound by the count of tensor
+        operations, and autograd's graph and the bookkeeping of clip_grad_norm_ and torch.optim
+        cost more than the arithmetic."""
+        result = ppo_gradients_(agent, obs, actions, old_logprobs, advantages, returns, config, with_stats)
+        by_name, stats = result if with_stats else (result, None)
+        grad = torch.cat([by_name[name].reshape(-1) for name in names])  # laid out as flat
+        grad *= (config.max_grad_norm / (grad.norm() + 1e-6)).clamp(max=1.0)  # clip_grad_norm_'s rule
+        optimizer.step([grad])
+        return stats
 
-    if config.compile:  # fuses the small tensor operations that bound the update (LeanRL's recipe); ~30 s once
-        minibatch_loss = torch.compile(minibatch_loss)
+    if config.compile:  # fuses the small tensor operations further (LeanRL's recipe); ~30 s once
+        ppo_gradients_ = torch.compile(ppo_gradients)
+    else:
+        ppo_gradients_ = ppo_gradients
 
     n, steps = config.num_envs, config.num_steps
     obs_buf = torch.zeros((steps, n, obs_size), device=device)
@@ -211,7 +315,7 @@ def train(config: Config, resume: bool = False) -> dict:
     started = time.perf_counter()
     for update in range(start_update, num_updates + 1):
         if config.anneal_lr:
-            optimizer.param_groups[0]["lr"] = config.learning_rate * (1.0 - (update - 1.0) / num_updates)
+            optimizer.lr = config.learning_rate * (1.0 - (update - 1.0) / num_updates)
         # -- rollout ---------------------------------------------------------------------
         for step in range(steps):
             global_step += n
@@ -264,18 +368,17 @@ def train(config: Config, resume: bool = False) -> dict:
         b_obs, b_actions = obs_buf.reshape(-1, obs_size), actions_buf.reshape(-1, action_size)
         b_logprobs, b_advantages = logprobs.reshape(-1), advantages.reshape(-1)
         b_returns = returns.reshape(-1)
-        clip_fractions = []
-        for _ in range(config.update_epochs):
+        clip_fractions = []  # the losses and clip fractions logged are the last epoch's
+        for epoch in range(config.update_epochs):
             order = torch.randperm(config.batch_size, device=device)
+            last_epoch = epoch == config.update_epochs - 1
             for begin in range(0, config.batch_size, config.minibatch_size):
                 mb = order[begin:begin + config.minibatch_size]
-                loss, policy_loss, value_loss, clip_fraction = minibatch_loss(
-                    b_obs[mb], b_actions[mb], b_logprobs[mb], b_advantages[mb], b_returns[mb])
-                optimizer.zero_grad()
-                loss.backward()
-                nn.utils.clip_grad_norm_(agent.parameters(), config.max_grad_norm, foreach=True)
-                optimizer.step()
-                clip_fractions.append(clip_fraction)
+                stats = minibatch_update(b_obs[mb], b_actions[mb], b_logprobs[mb], b_advantages[mb], b_returns[mb],
+                                         with_stats=last_epoch)
+                if last_epoch:
+                    policy_loss, value_loss, clip_fraction = stats
+                    clip_fractions.append(clip_fraction)
 
         # -- logs and checkpoints ------------------------------------------------------------
         elapsed = train_seconds + time.perf_counter() - started

@@ -10,7 +10,7 @@ import torch
 import scara_gym  # noqa: F401
 from agents.evaluate import make_policy
 from agents.policies import run_episode
-from agents.torch_ppo import Agent, Config, RunningMeanStd, main, train
+from agents.torch_ppo import Adam, Agent, Config, RunningMeanStd, main, ppo_gradients, ppo_loss, train
 
 
 def test_running_mean_std_matches_the_batch_statistics():
@@ -33,6 +33,60 @@ def test_the_log_probability_is_the_gaussian_one():
     assert torch.allclose(log_prob, reference.log_prob(action).sum(-1), atol=1e-5)
     assert torch.allclose(entropy, reference.entropy().sum(-1), atol=1e-5)
     assert value.shape == (5,)
+
+
+@pytest.mark.parametrize("spread", [0.01, 0.5])  # old log probs near the new ones, and far: clipped
+def test_the_written_out_gradient_is_autograds(spread):
+    torch.manual_seed(0)
+    agent = Agent(18, 3, 16, 10.0)
+    with torch.no_grad():
+        agent.actor_logstd.copy_(torch.tensor([-0.5, 0.0, 0.3]))
+        for bias in agent.biases:
+            bias.normal_(0.0, 0.3)
+        agent.weights[-1].normal_(0.0, 0.3)  # the init's 0.01-gain actor head leaves the chain rule untested
+    config = Config(ent_coef=0.01, vf_coef=0.7, clip_coef=0.2)
+    x, actions = torch.randn(64, 18), torch.randn(64, 3)
+    with torch.no_grad():
+        _, logprob, _, _ = agent.act(x, actions)
+    old_logprobs = logprob + spread * torch.randn(64)
+    advantages, returns = torch.randn(64), torch.randn(64)
+    loss = ppo_loss(agent, x, actions, old_logprobs, advantages, returns, config)
+    names, parameters = zip(*agent.named_parameters())
+    expected = dict(zip(names, torch.autograd.grad(loss, parameters)))
+    grads, (policy_loss, value_loss, clip_fraction) = ppo_gradients(agent, x, actions, old_logprobs, advantages,
+                                                                     returns, config, with_stats=True)
+    assert grads.keys() == expected.keys()
+    assert ppo_gradients(agent, x, actions, old_logprobs, advantages, returns, config).keys() == expected.keys()
+    for name, reference in expected.items():
+        grad = grads[name]
+        assert grad.shape == reference.shape
+        assert torch.allclose(grad, reference, rtol=1e-4, atol=1e-6), (grad - reference).abs().max()
+    assert (clip_fraction > 0.3) == (spread > 0.1)  # the far case exercises the clipped branch
+    entropy = (agent.actor_logstd + 0.5 + 0.5 * np.log(2 * np.pi)).sum()
+    assert torch.allclose(policy_loss + config.vf_coef * value_loss - config.ent_coef * entropy, loss.detach())
+
+
+def test_adam_takes_torch_optims_steps_and_resumes():
+    torch.manual_seed(0)
+    mine, reference = [torch.randn(4, 3), torch.randn(5)], [torch.nn.Parameter(torch.randn(4, 3)), torch.nn.Parameter(torch.randn(5))]
+    with torch.no_grad():
+        torch._foreach_copy_(mine, reference)
+    adam = Adam(mine, lr=3e-3, eps=1e-5)
+    optimizer = torch.optim.Adam(reference, lr=3e-3, eps=1e-5)
+    for step in range(6):
+        grads = [torch.randn(4, 3), torch.randn(5)]
+        if step == 3:  # a new Adam from the saved state carries on as the old one would
+            state = adam.state_dict()
+            adam = Adam(mine, lr=1.0, eps=1e-5)
+            adam.load_state_dict(state)
+        adam.step([g.clone() for g in grads])
+        for parameter, grad in zip(reference, grads):
+            parameter.grad = grad
+        optimizer.step()
+    assert adam.steps == 6
+    for a, b in zip(mine, reference):
+        assert torch.allclose(a, b, rtol=1e-6, atol=1e-7)
+        assert not torch.equal(a, torch.zeros_like(a))
 
 
 @pytest.mark.slow
