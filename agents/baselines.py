@@ -10,7 +10,9 @@ are the standard algorithms on the environment as users get it (hyperparameters 
 ``agents/hyperparams/ALGO.yml``); ``ppo-residual`` is the engineered agent of agents/ppo.py
 (``ppo_residual.yml``), ``ppo-residual-dr`` the same trained with physics and wall
 randomized per episode (its "pd-dr" block) and ``ppo-residual-frugal`` with an energy cost
-in the reward (its "pd-frugal" block). ``--shard K/N`` takes every N-th run starting at the K-th, so
+in the reward (its "pd-frugal" block); ``torch-ppo`` is agents/torch_ppo.py with its defaults (1M
+steps, the env's reward) and ``torch-ppo-frugal`` the same with the energy cost weighted
+(TORCH_PPO_REWARD_WEIGHTS). ``--shard K/N`` takes every N-th run starting at the K-th, so
 that N processes can share the list (one per core); without it, workers started side by
 side share it too: each run is locked (``RUN/.lock``) by the process training it, and a
 worker passes over runs that are finished or locked. ``--publish DEST`` copies every finished
@@ -31,7 +33,10 @@ from pathlib import Path
 
 from scara_gym import LATEST_ENV_ID
 
-ALGOS = ("ppo", "sac", "td3", "ppo-residual", "ppo-residual-dr", "ppo-residual-frugal")
+ALGOS = ("ppo", "sac", "td3", "ppo-residual", "ppo-residual-dr", "ppo-residual-frugal", "torch-ppo",
+         "torch-ppo-frugal")
+TORCH_PPO_REWARD_WEIGHTS = {"torch-ppo": "", "torch-ppo-frugal": "energy=0.05"}
+"""agents.torch_ppo's runs: the env's reward weights each trains with ("": the env's own)"""
 
 
 def run_dir(runs: Path, env_id: str, control_mode: str, algo: str, seed: int) -> Path:
@@ -60,9 +65,11 @@ PUBLISHED = ("config.json", "summary.json", "model.zip", "model.pt", "vecnormali
 
 
 def is_finished(run: Path) -> bool:
-    """A run folder that holds a trained model (SB3's model.zip or agents.torch_ppo's model.pt)."""
+    """A run folder that holds a trained model (SB3's model.zip, or agents.torch_ppo's model.pt
+    with the summary.json it writes at the end: its model.pt is also a checkpoint)."""
     run = Path(run)
-    return (run / "config.json").exists() and ((run / "model.zip").exists() or (run / "model.pt").exists())
+    return (run / "config.json").exists() and (
+        (run / "model.zip").exists() or ((run / "model.pt").exists() and (run / "summary.json").exists()))
 
 
 def publish(run: Path, dest: Path) -> Path:
@@ -98,6 +105,14 @@ def train_run(algo: str, out: Path, seed: int, env_id: str = LATEST_ENV_ID, cont
               command: str | None = None) -> Path:
     """Train (or resume, or find finished) one run of ``algo`` into ``out``; hyperparams: the
     block to train with (default: hyperparams_of)."""
+    if algo in TORCH_PPO_REWARD_WEIGHTS:
+        from agents.torch_ppo import Config, train
+
+        if not is_finished(out):  # else a resumed, finished run would overwrite its summary
+            steps = {"total_timesteps": total_timesteps} if total_timesteps else {}
+            train(Config(env_id=env_id, control_mode=control_mode, seed=seed, torch_threads=1, out=str(out),
+                         reward_weights=TORCH_PPO_REWARD_WEIGHTS[algo], **steps), resume=True)
+        return Path(out)
     if algo.startswith("ppo-residual"):
         from agents.ppo import train
 

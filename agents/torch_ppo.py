@@ -3,7 +3,9 @@
 It trains on the native vector env, on the CPU (numpy arrays in, torch tensors made once per
 step) or on its CUDA backend (``--device cuda``: the env, the rollout buffer, the network and
 the updates all stay on the GPU). Read top to bottom: the config, the running normalizers,
-the agent, the rollout and the update.
+the agent, Adam, the loss and its gradient written out (small networks on a CPU are bound by
+the count of tensor operations: autograd's graph and torch.optim's bookkeeping cost more
+than the arithmetic, and tests hold both to torch's), the rollout and the update.
 
     python -m agents.torch_ppo --env-id Scara-C11-v1 --total-timesteps 2000000 --out runs/torch_ppo
     python -m agents.torch_ppo --device cuda --num-envs 4096 --num-steps 32 --out runs/torch_ppo_gpu
@@ -36,6 +38,7 @@ class Config:
     env_id: str = "Scara-C11-v1"
     control_mode: str = "pd"
     randomize_target: bool = False
+    reward_weights: str = ""       # env reward weights to change, "energy=0.05,time=20" ("": the env's)
     device: str = "cpu"            # where the env runs and the agent trains: "cpu" or "cuda"
     seed: int = 0
     num_envs: int = 16
@@ -241,10 +244,24 @@ def ppo_gradients(agent: Agent, x, actions, old_logprobs, advantages, returns, c
     return grads, (policy_loss, 0.5 * (value_error ** 2).mean(), clip_fraction)
 
 
+def reward_weights(text: str) -> dict:
+    """ "energy=0.05,time=20" -> {"energy": 0.05, "time": 20.0} (the env checks the names)."""
+    weights = {}
+    for item in filter(None, (part.strip() for part in text.split(","))):
+        name, _, value = item.partition("=")
+        try:
+            weights[name.strip()] = float(value)
+        except ValueError:
+            raise ValueError(f"reward_weights: expected name=number items separated by commas, got {item!r}") from None
+    return weights
+
+
 def make_env(config: Config):
+    weights = reward_weights(config.reward_weights)
     return gym.make_vec(config.env_id, num_envs=config.num_envs, vectorization_mode="vector_entry_point",
                         autoreset_mode="SameStep", control_mode=config.control_mode,
                         randomize_target=config.randomize_target, device=config.device,
+                        **({"reward_weights": weights} if weights else {}),
                         **({"num_threads": config.env_threads} if config.device == "cpu" else {}))
 
 

@@ -88,6 +88,31 @@ def test_comparison_command_writes_every_policy(tmp_path):
     json.dumps(entries)  # the JSON other tools read
 
 
+def test_a_condition_without_a_shipped_optimal_solution_is_compared_without_it(monkeypatch, capsys):
+    import agents.optimal
+
+    monkeypatch.setattr(agents.optimal, "cached_solution", lambda *args, **kwargs: None)
+    entries, _ = compare.compare(None, ["c11"], episodes=2, verbose=True, bisection_tolerance=0.01)
+    assert [e["kind"] for e in entries] == ["pd"] + ["heuristic"] * 4  # no solve of minutes inside
+    assert "optimal: no shipped solution (python -m agents.optimal --condition c11" in capsys.readouterr().out
+
+
+def test_the_campaign_trains_the_single_file_ppo_once(tmp_path):
+    from agents import baselines
+
+    out = tmp_path / "seed0"
+    baselines.train_run("torch-ppo-frugal", out, seed=0, total_timesteps=2048)
+    assert baselines.is_finished(out)
+    config = json.loads((out / "config.json").read_text())
+    assert config["reward_weights"] == baselines.TORCH_PPO_REWARD_WEIGHTS["torch-ppo-frugal"] != ""
+    assert config["global_step"] == 2048 and config["seed"] == 0
+    summary = (out / "summary.json").read_text()
+    baselines.train_run("torch-ppo-frugal", out, seed=0, total_timesteps=2048)  # finished: left as it is
+    assert (out / "summary.json").read_text() == summary
+    (out / "summary.json").unlink()  # model.pt is also a checkpoint: without the summary, not finished
+    assert not baselines.is_finished(out)
+
+
 def _entry(condition, kind, algorithm=None, success=1.0, collisions=0.0, time=1.5, energy=70.0, seeds=None,
            train_seconds=600.0):
     e = {"name": algorithm or kind, "kind": kind, "algorithm": algorithm, "condition": condition,

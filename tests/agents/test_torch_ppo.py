@@ -10,7 +10,8 @@ import torch
 import scara_gym  # noqa: F401
 from agents.evaluate import make_policy
 from agents.policies import run_episode
-from agents.torch_ppo import Adam, Agent, Config, RunningMeanStd, main, ppo_gradients, ppo_loss, train
+from agents.torch_ppo import (Adam, Agent, Config, RunningMeanStd, main, make_env, ppo_gradients, ppo_loss,
+                              reward_weights, train)
 
 
 def test_running_mean_std_matches_the_batch_statistics():
@@ -87,6 +88,18 @@ def test_adam_takes_torch_optims_steps_and_resumes():
     for a, b in zip(mine, reference):
         assert torch.allclose(a, b, rtol=1e-6, atol=1e-7)
         assert not torch.equal(a, torch.zeros_like(a))
+
+
+def test_reward_weights_reach_the_env_and_bad_ones_are_named():
+    assert reward_weights("") == {}
+    assert reward_weights("energy=0.05, time=20") == {"energy": 0.05, "time": 20.0}
+    envs = make_env(Config(num_envs=2, reward_weights="energy=0.05,time=20"))
+    weights = envs.unwrapped.task.reward_weights
+    assert (weights.energy, weights.time, weights.collision) == (0.05, 20.0, 50.0)  # the rest: the env's
+    with pytest.raises(ValueError, match="reward_weights: expected name=number"):
+        reward_weights("energy")
+    with pytest.raises(ValueError, match="reward_weights.*energi"):
+        make_env(Config(num_envs=2, reward_weights="energi=1"))
 
 
 @pytest.mark.slow
