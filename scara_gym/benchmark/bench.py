@@ -354,7 +354,8 @@ def bench_ppo(device: str = "cpu", num_envs: int = 16, num_steps: int = 128, tot
     return figures
 
 
-def main(quick: bool = False, stream=sys.stdout, gpu_only: bool = False) -> str:
+def main(quick: bool = False, stream=None, gpu_only: bool = False) -> str:
+    stream = sys.stdout if stream is None else stream  # at call time: a stream bound at import can be stale
     if gpu_only:
         return gpu_section(quick, stream)
     repeats = 2 if quick else 7

@@ -198,8 +198,9 @@ def point_to_point_target_tip(params: ScaraParams) -> np.ndarray:
 
 
 def reproduce(out: Path = Path("c11-results"), repeats: int = 5,
-              params: ScaraParams = DEFAULT_PARAMS, stream=sys.stdout) -> str:
+              params: ScaraParams = DEFAULT_PARAMS, stream=None) -> str:
     """Run tasks a-c, print the seed's tables beside ours, write the figures; returns the report."""
+    stream = sys.stdout if stream is None else stream  # at call time: a stream bound at import can be stale
     progress = Progress()
     print("scara-c11 reproduce: ARGESIM C11, tasks a-c (the first run compiles the model, "
           "about 30-45 s; later runs load it from the cache)", file=sys.stderr)
