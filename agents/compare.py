@@ -231,11 +231,10 @@ def compare(runs_root: Path | None = Path("runs/baselines"), conditions: list[st
             try:  # the shipped solutions only: a solve takes minutes to hours
                 runs = [episodes_of(env, OptimalPolicy(env, solve_missing=False), episodes, seed, same)]
             except LookupError:
-                runs = None
                 if verbose:
                     print(f"[{name}] optimal: no shipped solution (python -m agents.optimal --condition {name} "
                           f"--write agents/optimal_solutions/{name}.json)", flush=True)
-            if runs is not None:
+            else:
                 add("optimal", "optimal", None, "voltage", runs, None,
                     note="minimum-time voltages held over the control steps (agents.optimal)")
         for (algorithm, mode), run_dirs in sorted(groups.items()):

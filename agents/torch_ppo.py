@@ -119,14 +119,19 @@ class Agent(nn.Module):
         x = (obs.to(torch.float64) - self.obs_rms.mean) / torch.sqrt(self.obs_rms.var + 1e-8)
         return x.clamp(-self.clip_obs, self.clip_obs).to(torch.float32)
 
+    def layers(self, x: torch.Tensor) -> list[torch.Tensor]:
+        """The batched MLP's input (x for both heads), hidden activations and output, shaped
+        (2, batch, width): [actor, critic]."""
+        h = [x.expand(2, *x.shape)]
+        for k, (weight, bias) in enumerate(zip(self.weights, self.biases)):
+            z = torch.baddbmm(bias, h[-1], weight)
+            h.append(torch.tanh(z) if k < len(self.weights) - 1 else z)
+        return h
+
     def heads(self, x: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
         """(action mean, value) of normalized observations x."""
-        h = x.expand(2, *x.shape)
-        for k, (weight, bias) in enumerate(zip(self.weights, self.biases)):
-            h = torch.baddbmm(bias, h, weight)
-            if k < len(self.weights) - 1:
-                h = torch.tanh(h)
-        return h[0], h[1, :, 0]
+        out = self.layers(x)[-1]
+        return out[0], out[1, :, 0]
 
     def value(self, x: torch.Tensor) -> torch.Tensor:
         return self.heads(x)[1]
@@ -203,15 +208,11 @@ def ppo_loss(agent: Agent, x, actions, old_logprobs, advantages, returns, config
 def ppo_gradients(agent: Agent, x, actions, old_logprobs, advantages, returns, config: Config,
                   with_stats: bool = False):
     """The gradient of ppo_loss by the chain rule through the loss and the batched MLP (tests
-    hold it to autograd's), as {parameter name: gradient}; with_stats, also (policy loss, value
-    loss, clip fraction) as tensors."""
+    hold it to autograd's): ({parameter name: gradient}, stats), stats (policy loss, value loss,
+    clip fraction) as tensors with_stats, else None."""
     batch = x.shape[0]
-    # forward, keeping the activations
-    h0 = x.expand(2, *x.shape)
-    (w1, w2, w3), (b1, b2, b3) = agent.weights, agent.biases
-    a1 = torch.tanh(torch.baddbmm(b1, h0, w1))
-    a2 = torch.tanh(torch.baddbmm(b2, a1, w2))
-    out = torch.baddbmm(b3, a2, w3)
+    h0, a1, a2, out = agent.layers(x)  # forward, keeping the activations
+    _, w2, w3 = agent.weights
     mean, value = out[0], out[1, :, 0]
     log_std = agent.actor_logstd
     std = log_std.exp()
@@ -238,7 +239,7 @@ def ppo_gradients(agent: Agent, x, actions, old_logprobs, advantages, returns, c
     grads = {"weights.0": d_w1, "weights.1": d_w2, "weights.2": d_w3, "biases.0": d_b1, "biases.1": d_b2,
              "biases.2": d_b3, "actor_logstd": d_log_std}
     if not with_stats:
-        return grads
+        return grads, None
     policy_loss = torch.max(unclipped_loss, clipped_loss).mean()
     clip_fraction = ((ratio - 1.0).abs() > config.clip_coef).float().mean()
     return grads, (policy_loss, 0.5 * (value_error ** 2).mean(), clip_fraction)
@@ -306,8 +307,7 @@ def train(config: Config, resume: bool = False) -> dict:
         (ppo_gradients): on a CPU these tiny networks are bound by the count of tensor
         operations, and autograd's graph and the bookkeeping of clip_grad_norm_ and torch.optim
         cost more than the arithmetic."""
-        result = ppo_gradients_(agent, obs, actions, old_logprobs, advantages, returns, config, with_stats)
-        by_name, stats = result if with_stats else (result, None)
+        by_name, stats = ppo_gradients_(agent, obs, actions, old_logprobs, advantages, returns, config, with_stats)
         grad = torch.cat([by_name[name].reshape(-1) for name in names])  # laid out as flat
         grad *= (config.max_grad_norm / (grad.norm() + 1e-6)).clamp(max=1.0)  # clip_grad_norm_'s rule
         optimizer.step([grad])
