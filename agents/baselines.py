@@ -11,8 +11,10 @@ are the standard algorithms on the environment as users get it (hyperparameters 
 (``ppo_residual.yml``), ``ppo-residual-dr`` the same trained with physics and wall
 randomized per episode (its "pd-dr" block) and ``ppo-residual-frugal`` with an energy cost
 in the reward (its "pd-frugal" block); ``torch-ppo`` is agents/torch_ppo.py with its defaults (1M
-steps, the env's reward) and ``torch-ppo-frugal`` the same with the energy cost weighted
-(TORCH_PPO_REWARD_WEIGHTS). ``--shard K/N`` takes every N-th run starting at the K-th, so
+steps, the env's reward), ``torch-ppo-frugal`` its run of the same seed fine-tuned with the
+energy cost weighted (0.5M steps more; the plan trains ``torch-ppo`` first where both are listed),
+``torch-ppo-dr`` with physics and wall drawn per episode and ``torch-ppo-random`` trained for
+targets drawn per episode (TORCH_PPO_VARIANTS). ``--shard K/N`` takes every N-th run starting at the K-th, so
 that N processes can share the list (one per core); without it, workers started side by
 side share it too: each run is locked (``RUN/.lock``) by the process training it, and a
 worker passes over runs that are finished or locked. ``--publish DEST`` copies every finished
@@ -33,10 +35,22 @@ from pathlib import Path
 
 from scara_gym import LATEST_ENV_ID
 
-ALGOS = ("ppo", "sac", "td3", "ppo-residual", "ppo-residual-dr", "ppo-residual-frugal", "torch-ppo",
-         "torch-ppo-frugal")
-TORCH_PPO_REWARD_WEIGHTS = {"torch-ppo": "", "torch-ppo-frugal": "energy=0.05"}
-"""agents.torch_ppo's runs: the env's reward weights each trains with ("": the env's own)"""
+TORCH_PPO_VARIANTS = {
+    "torch-ppo": {},
+    # fine-tuned from the torch-ppo run of the same seed (FINE_TUNED): from scratch, the energy
+    # cost taught moving frugally before arriving was learned (no success in 1M steps)
+    "torch-ppo-frugal": {"reward_weights": "energy=0.05", "total_timesteps": 500_000},
+    "torch-ppo-dr": {"randomize_params": "all"},
+    "torch-ppo-random": {"randomize_target": True, "total_timesteps": 2_000_000},
+}
+"""agents.torch_ppo's runs: the Config fields each changes from the defaults"""
+FINE_TUNED = {"torch-ppo-frugal": "torch-ppo"}
+"""runs that start from the finished run of another algorithm with the same seed (init_from)"""
+
+
+class WaitsForRun(RuntimeError):
+    """A run that starts from another one that is not finished yet."""
+ALGOS = ("ppo", "sac", "td3", "ppo-residual", "ppo-residual-dr", "ppo-residual-frugal", *TORCH_PPO_VARIANTS)
 
 
 def run_dir(runs: Path, env_id: str, control_mode: str, algo: str, seed: int) -> Path:
@@ -105,13 +119,20 @@ def train_run(algo: str, out: Path, seed: int, env_id: str = LATEST_ENV_ID, cont
               command: str | None = None) -> Path:
     """Train (or resume, or find finished) one run of ``algo`` into ``out``; hyperparams: the
     block to train with (default: hyperparams_of)."""
-    if algo in TORCH_PPO_REWARD_WEIGHTS:
+    if algo in TORCH_PPO_VARIANTS:
         from agents.torch_ppo import Config, train
 
         if not is_finished(out):  # else a resumed, finished run would overwrite its summary
-            steps = {"total_timesteps": total_timesteps} if total_timesteps else {}
+            fields = TORCH_PPO_VARIANTS[algo] | ({"total_timesteps": total_timesteps} if total_timesteps else {})
+            if algo in FINE_TUNED:
+                base = Path(out).parent.parent / FINE_TUNED[algo] / Path(out).name
+                if not is_finished(base):
+                    raise WaitsForRun(f"{algo} starts from {FINE_TUNED[algo]} {Path(out).name}, not finished in "
+                                      f"{base}: train it first (python -m agents.baselines --algos "
+                                      f"{FINE_TUNED[algo]} {algo} ...)")
+                fields["init_from"] = str(base)
             train(Config(env_id=env_id, control_mode=control_mode, seed=seed, torch_threads=1, out=str(out),
-                         reward_weights=TORCH_PPO_REWARD_WEIGHTS[algo], **steps), resume=True)
+                         **fields), resume=True)
         return Path(out)
     if algo.startswith("ppo-residual"):
         from agents.ppo import train
@@ -152,7 +173,8 @@ def main(argv: list[str] | None = None) -> list[Path]:
         parser.error(f"--shard must be K/N with 0 <= K < N, got {args.shard!r}")
     if any(seed < 0 for seed in args.seeds):
         parser.error(f"--seeds must be integers >= 0, got {args.seeds}")
-    plan = [(algo, seed) for seed in args.seeds for algo in args.algos][shard::shards]
+    algos = sorted(args.algos, key=lambda algo: algo in FINE_TUNED)  # the runs they start from first
+    plan = [(algo, seed) for seed in args.seeds for algo in algos][shard::shards]
     if args.publish is not None:
         published = []
         for algo, seed in plan:
@@ -170,7 +192,11 @@ def main(argv: list[str] | None = None) -> list[Path]:
             if not mine:
                 print(f"{algo} seed {seed}: trained by another process, passed over", flush=True)
                 continue
-            out = train_one(algo, seed, args.runs, args.env_id, args.control_mode, args.total_timesteps)
+            try:
+                out = train_one(algo, seed, args.runs, args.env_id, args.control_mode, args.total_timesteps)
+            except WaitsForRun as waiting:
+                print(f"{algo} seed {seed}: passed over: {waiting}", flush=True)
+                continue
         config = json.loads((out / "config.json").read_text())
         print(f"{algo} seed {seed}: {out} ({config['train_seconds']:.0f} s of training, "
               f"{time.perf_counter() - started:.0f} s in this call)", flush=True)

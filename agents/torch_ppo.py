@@ -38,6 +38,7 @@ class Config:
     env_id: str = "Scara-C11-v1"
     control_mode: str = "pd"
     randomize_target: bool = False
+    randomize_params: str = ""     # domain randomization per episode: a preset of scara_gym.envs.randomization ("all")
     reward_weights: str = ""       # env reward weights to change, "energy=0.05,time=20" ("": the env's)
     device: str = "cpu"            # where the env runs and the agent trains: "cpu" or "cuda"
     seed: int = 0
@@ -61,6 +62,7 @@ class Config:
     torch_threads: int = 0         # 0: torch's default
     compile: bool = False          # torch.compile the minibatch gradient
     checkpoint_every: int = 10     # updates between checkpoints
+    init_from: str = ""            # a finished run of this file to start from (its model.pt), e.g. to fine-tune
     out: str = "runs/torch_ppo"
 
     @property
@@ -262,6 +264,7 @@ def make_env(config: Config):
     return gym.make_vec(config.env_id, num_envs=config.num_envs, vectorization_mode="vector_entry_point",
                         autoreset_mode="SameStep", control_mode=config.control_mode,
                         randomize_target=config.randomize_target, device=config.device,
+                        **({"randomize_params": config.randomize_params} if config.randomize_params else {}),
                         **({"reward_weights": weights} if weights else {}),
                         **({"num_threads": config.env_threads} if config.device == "cpu" else {}))
 
@@ -299,6 +302,8 @@ def train(config: Config, resume: bool = False) -> dict:
         optimizer.load_state_dict(state["optimizer"])
         return_rms.load_state_dict(state["return_rms"])
         start_update, global_step, train_seconds = state["update"] + 1, state["global_step"], state["train_seconds"]
+    elif config.init_from:
+        load_weights(agent, Path(config.init_from))
     (out / "config.json").write_text(json.dumps(dataclasses.asdict(config), indent=2))
     writer = SummaryWriter(str(out / "tb"))
 
@@ -435,6 +440,22 @@ def save(agent: Agent, out: Path) -> None:
     torch.save({"state_dict": {k: v.cpu() for k, v in agent.state_dict().items()},
                 "obs_size": agent.obs_rms.mean.shape[0], "action_size": agent.actor_logstd.shape[0],
                 "hidden_size": agent.weights[0].shape[-1], "clip_obs": agent.clip_obs}, out / "model.pt")
+
+
+def load_weights(agent: Agent, run_dir: Path) -> None:
+    """Start ``agent`` from a finished run's policy, value function and observation normalizer
+    (Config.init_from); the optimizer and the reward scale start afresh."""
+    if not (run_dir / "model.pt").exists():
+        raise FileNotFoundError(f"init_from: no model.pt in {str(run_dir)!r}; give a folder written by agents.torch_ppo")
+    saved = torch.load(run_dir / "model.pt", map_location="cpu", weights_only=False)
+    mine = (agent.obs_rms.mean.shape[0], agent.actor_logstd.shape[0], agent.weights[0].shape[-1])
+    theirs = (saved["obs_size"], saved["action_size"], saved["hidden_size"])
+    if mine != theirs:
+        raise ValueError(f"init_from: {str(run_dir)!r} has (observation, action, hidden) sizes {theirs}, "
+                         f"this run {mine}")
+    with torch.no_grad():
+        for name, value in agent.state_dict().items():  # in place: the parameters are views of one tensor
+            value.copy_(saved["state_dict"][name])
 
 
 class TorchPPOPolicy:

@@ -97,17 +97,26 @@ def test_a_condition_without_a_shipped_optimal_solution_is_compared_without_it(m
     assert "optimal: no shipped solution (python -m agents.optimal --condition c11" in capsys.readouterr().out
 
 
-def test_the_campaign_trains_the_single_file_ppo_once(tmp_path):
+@pytest.mark.parametrize("algo", ["torch-ppo-frugal", "torch-ppo-dr", "torch-ppo-random"])
+def test_the_campaign_trains_the_single_file_ppo_once(tmp_path, algo):
     from agents import baselines
 
-    out = tmp_path / "seed0"
-    baselines.train_run("torch-ppo-frugal", out, seed=0, total_timesteps=2048)
+    out = tmp_path / algo / "seed0"
+    if algo in baselines.FINE_TUNED:  # it starts from its base run of the same seed, once that is finished
+        with pytest.raises(baselines.WaitsForRun, match=f"starts from {baselines.FINE_TUNED[algo]} seed0"):
+            baselines.train_run(algo, out, seed=0, total_timesteps=2048)
+        baselines.train_run(baselines.FINE_TUNED[algo], tmp_path / baselines.FINE_TUNED[algo] / "seed0", seed=0,
+                            total_timesteps=2048)
+    baselines.train_run(algo, out, seed=0, total_timesteps=2048)
     assert baselines.is_finished(out)
     config = json.loads((out / "config.json").read_text())
-    assert config["reward_weights"] == baselines.TORCH_PPO_REWARD_WEIGHTS["torch-ppo-frugal"] != ""
+    changed = {name: value for name, value in baselines.TORCH_PPO_VARIANTS[algo].items() if name != "total_timesteps"}
+    assert changed and {name: config[name] for name in changed} == changed
     assert config["global_step"] == 2048 and config["seed"] == 0
+    if algo in baselines.FINE_TUNED:
+        assert config["init_from"] == str(tmp_path / baselines.FINE_TUNED[algo] / "seed0")
     summary = (out / "summary.json").read_text()
-    baselines.train_run("torch-ppo-frugal", out, seed=0, total_timesteps=2048)  # finished: left as it is
+    baselines.train_run(algo, out, seed=0, total_timesteps=2048)  # finished: left as it is
     assert (out / "summary.json").read_text() == summary
     (out / "summary.json").unlink()  # model.pt is also a checkpoint: without the summary, not finished
     assert not baselines.is_finished(out)
@@ -130,16 +139,58 @@ def test_target_checks_say_met_or_the_number_reached():
                _entry("c11", "learned", "sac", success=0.5, time=1.20, energy=500.0, seeds=[0, 1], train_seconds=2000),
                _entry("random-targets", "heuristic", time=1.55),
                _entry("random-targets", "learned", "ppo", success=0.98, time=1.40, seeds=[0, 1])]
-    entries += [_entry(c, "learned", compare.ROBUST_ALGORITHM, success=0.97, seeds=[0]) for c in compare.SHIFTS]
+    entries += [_entry(c, "learned", "ppo-residual-dr", success=0.80, seeds=[0]) for c in compare.SHIFTS]
+    entries += [_entry(c, "learned", "torch-ppo-dr", success=0.97, seeds=[0]) for c in compare.SHIFTS]
+    entries += [_entry(c, "learned", "ppo", success=1.0, seeds=[0]) for c in compare.SHIFTS]  # not randomized
     checks = {c["target"].split(":")[0]: c for c in compare.target_checks(entries)}
     assert checks["optimal reference on the C11 target"]["met"] is True
     best = checks["best learned on the C11 target"]
     assert best["met"] is True and best["reached"].startswith("ppo:")  # sac is faster but fails seeds
     assert checks["randomized targets"]["met"] is False and "success 0.98" in checks["randomized targets"]["reached"]
-    assert checks["domain-randomized agent (ppo-residual-dr) under the four shifts"]["met"] is True
+    robust = checks["domain-randomized agent under the four shifts"]
+    assert robust["met"] is True and robust["reached"].startswith("torch-ppo-dr: load-x2 0.97 / 0.00")
     assert checks["fast and frugal"]["met"] is True
     training_check = checks["each training run <= 30 min on 2 CPU cores"]
     assert training_check["met"] is False and "sac 33.3 min" in training_check["reached"]
     slow = compare.target_checks([_entry("c11", "optimal", time=1.26)])
     assert slow[0]["met"] is False and "+3.13 %" in slow[0]["reached"]
     assert [c["met"] for c in slow[1:]] == [None] * (len(slow) - 1)
+
+
+def test_a_cached_evaluation_is_reused_only_for_the_same_model_condition_and_episodes(tmp_path, monkeypatch):
+    from agents.torch_ppo import Config, train as train_torch_ppo
+
+    run = tmp_path / "seed0"
+    train_torch_ppo(Config(num_envs=2, num_steps=8, num_minibatches=1, update_epochs=1, total_timesteps=16,
+                           out=str(run)))
+    c11, load = compare.CONDITIONS["c11"], compare.CONDITIONS["load-x2"]
+    env = compare.make_env(c11, "pd")
+    cache = tmp_path / "cache"
+    first = compare.learned_episodes(env, run, c11, "pd", 3, 1000, True, cache)
+    assert len(list(cache.glob("*.pkl"))) == 1
+
+    def must_not_run(*args, **kwargs):
+        raise AssertionError("evaluated again")
+
+    monkeypatch.setattr(compare, "episodes_of", must_not_run)
+    again = compare.learned_episodes(env, run, c11, "pd", 3, 1000, True, cache)
+    for key in ("success", "collisions", "reach_time", "energy"):
+        assert np.array_equal(first[key], again[key], equal_nan=True), key
+    key = compare.evaluation_key(run, c11, "pd", 3, 1000)
+    assert key != compare.evaluation_key(run, load, "pd", 3, 1000)
+    assert key != compare.evaluation_key(run, c11, "pd", 4, 1000)
+    assert key != compare.evaluation_key(run, c11, "pd", 3, 1001)
+    model = (run / "model.pt").read_bytes()
+    (run / "model.pt").write_bytes(model + b"\0")  # another model: not the cached one
+    with pytest.raises(AssertionError, match="evaluated again"):
+        compare.learned_episodes(env, run, c11, "pd", 3, 1000, True, cache)
+
+
+def test_the_campaign_trains_a_base_run_before_the_run_fine_tuned_from_it(tmp_path, capsys):
+    from agents import baselines
+
+    common = ["--seeds", "0", "--runs", str(tmp_path), "--total-timesteps", "2048"]
+    assert baselines.main(["--algos", "torch-ppo-frugal", *common]) == []  # its base is not there
+    assert "torch-ppo-frugal seed 0: passed over: torch-ppo-frugal starts from torch-ppo" in capsys.readouterr().out
+    done = baselines.main(["--algos", "torch-ppo-frugal", "torch-ppo", *common])
+    assert [run.parent.name for run in done] == ["torch-ppo", "torch-ppo-frugal"]

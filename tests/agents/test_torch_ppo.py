@@ -125,3 +125,24 @@ def test_a_tiny_run_trains_resumes_and_is_evaluated(tmp_path):
     assert result["steps"] > 0 and np.isfinite(result["return"])
     with pytest.raises(ValueError, match="trained in 'pd' mode"):
         make_policy(f"torchppo:{out}", gym.make("Scara-C11-v1", control_mode="voltage"))
+
+
+def test_a_run_starts_from_another_runs_policy_with_init_from(tmp_path):
+    source, tuned = tmp_path / "source", tmp_path / "tuned"
+    tiny = dict(num_envs=2, num_steps=8, num_minibatches=1, update_epochs=1, total_timesteps=16)
+    train(Config(**tiny, out=str(source)))
+    # with a zero learning rate the fine-tuned weights are the source's (its own observations
+    # move only the normalizer, a buffer)
+    train(Config(**tiny, learning_rate=0.0, seed=5, init_from=str(source), reward_weights="energy=0.05",
+                 out=str(tuned)))
+    saved = {run: torch.load(run / "model.pt", weights_only=False)["state_dict"] for run in (source, tuned)}
+    parameters = [name for name, _ in Agent(18, 3, 64, 10.0).named_parameters()]
+    assert all(torch.equal(saved[source][name], saved[tuned][name]) for name in parameters)
+    fresh = tmp_path / "fresh"
+    train(Config(**tiny, learning_rate=0.0, seed=5, out=str(fresh)))
+    fresh_weights = torch.load(fresh / "model.pt", weights_only=False)["state_dict"]
+    assert not all(torch.equal(saved[source][name], fresh_weights[name]) for name in parameters)
+    with pytest.raises(ValueError, match=r"init_from: .* sizes \(18, 3, 64\), this run \(18, 3, 32\)"):
+        train(Config(**tiny, hidden_size=32, init_from=str(source), out=str(tmp_path / "other")))
+    with pytest.raises(FileNotFoundError, match="init_from: no model.pt"):
+        train(Config(**tiny, init_from=str(tmp_path / "nowhere"), out=str(tmp_path / "other2")))
