@@ -1,6 +1,6 @@
 """PPO (stable-baselines3) on Scara-C11-v0, readable top to bottom.
 
-The agent acts through a residual set-point: its output r in [-1, 1]^3 becomes the
+The agent acts through a residual set-point (agents.residual): its output r in [-1, 1]^3 becomes the
 set-point  target + residual_scale * deadzone(r),  deadzone(r) = sign(r) max(|r| - z, 0)
 / (1 - z)  (the target is read from the observation: q + target error). Every |r| < z
 commands the target exactly, which the 0.001 success band needs (a plain linear map
@@ -20,18 +20,17 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-import numpy as np
 import yaml
 
 from stable_baselines3.common.vec_env import VecEnvWrapper
 
+from agents.residual import ResidualSetpoint
 from agents.training import SHIPPED_MODELS, SB3Policy
 from agents.training import train as run_training
 from scara_gym import ENV_ID
-from scara_gym.envs import OBSERVATION_LAYOUT, ScaraTask
 
 HYPERPARAMS = Path(__file__).with_name("hyperparams") / "ppo_residual.yml"
-Q, TARGET_ERROR = OBSERVATION_LAYOUT["q"], OBSERVATION_LAYOUT["target_error"]
+__all__ = ["ResidualSetpoint", "ResidualVecEnv", "PPOPolicy", "train", "load_hyperparams"]
 
 
 def shipped_models() -> list[str]:
@@ -65,27 +64,6 @@ def load_hyperparams(env_id: str = ENV_ID, control_mode: str = "pd", path: Path 
     if randomize_target and f"{key}-random" in table[env_id]:
         return dict(table[env_id][f"{key}-random"])
     return dict(table[env_id][key])
-
-
-class ResidualSetpoint:
-    """Maps agent outputs r to environment actions, for a batch of raw observations."""
-
-    def __init__(self, task: ScaraTask, residual_scale, deadzone: float = 0.0) -> None:
-        if not 0.0 <= deadzone < 1.0:
-            raise ValueError(f"residual_deadzone must be in [0, 1), got {deadzone!r}")
-        self.task = task
-        self.scale = np.asarray(residual_scale, dtype=float)
-        self.deadzone = float(deadzone)
-
-    def __call__(self, obs: np.ndarray, r: np.ndarray) -> np.ndarray:
-        obs = np.atleast_2d(np.asarray(obs, dtype=float))
-        r = np.clip(np.atleast_2d(np.asarray(r, dtype=float)), -1.0, 1.0)
-        target = obs[:, Q] + obs[:, TARGET_ERROR]
-        shaped = np.sign(r) * np.maximum(np.abs(r) - self.deadzone, 0.0) / (1.0 - self.deadzone)
-        setpoint = target + self.scale * shaped
-        if self.task.control_mode == "pd":
-            return np.clip((setpoint - self.task.setpoint_center) / self.task.setpoint_half, -1.0, 1.0)
-        return self.task.pd_action(obs, setpoint)
 
 
 class ResidualVecEnv(VecEnvWrapper):

@@ -40,6 +40,8 @@ class Config:
     randomize_target: bool = False
     randomize_params: str = ""     # domain randomization per episode: a preset of scara_gym.envs.randomization ("all")
     reward_weights: str = ""       # env reward weights to change, "energy=0.05,time=20" ("": the env's)
+    residual_scale: str = ""       # "2.5,2.5,0.05": act through agents.residual's set-point around the target
+    residual_deadzone: float = 0.2 # (an engineered agent, not plain PPO; "": the env's actions as they are)
     device: str = "cpu"            # where the env runs and the agent trains: "cpu" or "cuda"
     seed: int = 0
     num_envs: int = 16
@@ -259,6 +261,20 @@ def reward_weights(text: str) -> dict:
     return weights
 
 
+def residual_mapping(config: Config, task):
+    """The residual set-point the agent acts through (agents.residual), or None."""
+    if not config.residual_scale:
+        return None
+    from agents.residual import ResidualSetpoint
+
+    try:
+        scale = [float(x) for x in config.residual_scale.split(",")]
+    except ValueError:
+        raise ValueError(f"residual_scale: expected 3 numbers separated by commas, got {config.residual_scale!r}") \
+            from None
+    return ResidualSetpoint(task, scale, config.residual_deadzone)
+
+
 def make_env(config: Config):
     weights = reward_weights(config.reward_weights)
     return gym.make_vec(config.env_id, num_envs=config.num_envs, vectorization_mode="vector_entry_point",
@@ -288,6 +304,9 @@ def train(config: Config, resume: bool = False) -> dict:
     # the CUDA env on numba's simulator returns CPU tensors: train where its tensors are
     device = getattr(envs.unwrapped, "device", device)
     obs_size, action_size = envs.single_observation_space.shape[0], envs.single_action_space.shape[0]
+    mapping = residual_mapping(config, envs.unwrapped.task)
+    if mapping is not None and device.type != "cpu":
+        raise ValueError("residual_scale: the residual set-point maps numpy observations; train on device='cpu'")
     agent = Agent(obs_size, action_size, config.hidden_size, config.clip_obs).to(device)
     names, parameters = zip(*agent.named_parameters())
     flat = share_one_tensor(parameters)
@@ -347,8 +366,10 @@ def train(config: Config, resume: bool = False) -> dict:
                 action, logprob, _, value = agent.act(x)
             obs_buf[step], actions_buf[step], logprobs[step], values[step], dones[step] = x, action, logprob, value, done
             clipped = action.clamp(-1.0, 1.0)
+            if mapping is not None:  # the agent's r becomes a set-point around the target
+                clipped = mapping(obs.numpy(), clipped.numpy())
             next_obs, reward, terminated, truncated, info = envs.step(
-                clipped if config.device == "cuda" else clipped.numpy())
+                clipped if config.device == "cuda" or mapping is not None else clipped.numpy())
             reward = tensor(reward, device)
             terminated, truncated = tensor(terminated, device), tensor(truncated, device)
             episode_return += reward
@@ -474,6 +495,8 @@ class TorchPPOPolicy:
         self.agent = Agent(saved["obs_size"], saved["action_size"], saved["hidden_size"], saved["clip_obs"])
         self.agent.load_state_dict(saved["state_dict"])
         self.agent.eval()
+        known = {f.name for f in dataclasses.fields(Config)}
+        self.mapping = residual_mapping(Config(**{k: v for k, v in config.items() if k in known}), unwrapped.task)
         self.name = f"torch-ppo ({run_dir.name})"
 
     def reset(self) -> None:
@@ -482,7 +505,8 @@ class TorchPPOPolicy:
     def __call__(self, obs: np.ndarray) -> np.ndarray:
         with torch.no_grad():
             x = self.agent.normalize(torch.as_tensor(np.asarray(obs))[None])
-            return self.agent.heads(x)[0][0].clamp(-1.0, 1.0).numpy().astype(np.float64)
+            action = self.agent.heads(x)[0][0].clamp(-1.0, 1.0).numpy().astype(np.float64)
+        return action if self.mapping is None else self.mapping(obs, action)[0]
 
 
 def main(argv: list[str] | None = None) -> None:

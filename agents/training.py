@@ -72,7 +72,7 @@ def _normalize_kwargs(hyper: dict) -> dict | None:
 def _residual_mapping(task, hyper: dict):
     if "residual_scale" not in hyper:
         return None
-    from agents.ppo import ResidualSetpoint
+    from agents.residual import ResidualSetpoint
 
     return ResidualSetpoint(task, hyper["residual_scale"], hyper.get("residual_deadzone", 0.0))
 

@@ -242,6 +242,17 @@ def step_robots(active, actions, robots, params, config, task, log, outcomes, ob
                        new_workspace())
 
 
+@njit(cache=True, nogil=True)
+def step_robots_serial(active, actions, robots, params, config, task, log, outcomes, obs):
+    """step_robots on the calling thread alone. With one thread, a parallel loop still wakes
+    numba's thread pool, whose idle OpenMP worker then spins on a core (about 40 % of one
+    core per process while torch trains between env steps)."""
+    for i in range(robots.shape[0]):
+        if active[i]:
+            robot_step(actions[i], robots[i], params[i], config[0], task[0], log[i], outcomes[i], obs[i],
+                       new_workspace())
+
+
 # the single environment's info, packed by compiled code into one float vector (reading
 # record fields from Python costs about 1.5 us each)
 INFO_FIELDS = (*REWARD_TERMS, "reached", "collisions", "episode_collisions", "critical", "time", "energy",

@@ -24,7 +24,7 @@ import numpy as np
 
 from scara_gym.envs.core import (
     N_INFO, N_OBS, OBSERVATION, OUTCOME, REWARD_TERMS, TASK, begin_robot, pack_info, pd_actions, step_robot,
-    step_robots,  # noqa: F401
+    step_robots, step_robots_serial,
 )
 from scara_gym.model import records as R
 from scara_gym.model.dynamics import tip_position
@@ -357,16 +357,21 @@ class ScaraTask:
         if clipped is not None:  # the compiled step saw the shaped action: count the given one's
             self.outcomes["clipped"][i] = clipped
 
-    def step_robots(self, active: np.ndarray, actions: np.ndarray) -> None:
-        """One control step of every active robot in parallel (actions: checked (N, 3) float64)."""
+    def step_robots(self, active: np.ndarray, actions: np.ndarray, parallel: bool = True) -> None:
+        """One control step of every active robot (actions: checked (N, 3) float64), on numba's
+        threads, or on the calling thread alone with ``parallel=False``."""
         if self.actuator is not None:
             rows = np.flatnonzero(active)
             clipped = np.count_nonzero(np.abs(actions[rows]) > 1.0, axis=1)
             actions = actions.copy()
             actions[rows] = self.actuator.apply(rows, np.clip(actions[rows], -1.0, 1.0))
-        with PARALLEL_LOCK:
-            step_robots(active, actions, self.robots, self.robot_params, self.config, self.task, self.log,
-                        self.outcomes, self.obs)
+        if parallel:
+            with PARALLEL_LOCK:
+                step_robots(active, actions, self.robots, self.robot_params, self.config, self.task, self.log,
+                            self.outcomes, self.obs)
+        else:  # no thread pool involved: no lock needed
+            step_robots_serial(active, actions, self.robots, self.robot_params, self.config, self.task, self.log,
+                               self.outcomes, self.obs)
         if self.actuator is not None:
             self.outcomes["clipped"][rows] = clipped
         failed = active & (self.outcomes["status"] < 0)

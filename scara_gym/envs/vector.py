@@ -124,8 +124,9 @@ class ScaraVectorEnv(VectorEnv):
             else np.zeros(self.num_envs, dtype=bool)
         for i in np.flatnonzero(resetting):
             task.reset_robot(i, self._rngs[i])
-        numba.set_num_threads(self.num_threads)  # per calling thread; cheap
-        task.step_robots(~resetting, a)
+        if self.num_threads > 1:
+            numba.set_num_threads(self.num_threads)  # per calling thread; cheap
+        task.step_robots(~resetting, a, parallel=self.num_threads > 1)
         outcomes = task.outcomes
         terminated = task.terminated(outcomes)
         truncated = outcomes["episode_steps"] >= self.max_episode_steps

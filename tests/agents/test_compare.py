@@ -97,24 +97,17 @@ def test_a_condition_without_a_shipped_optimal_solution_is_compared_without_it(m
     assert "optimal: no shipped solution (python -m agents.optimal --condition c11" in capsys.readouterr().out
 
 
-@pytest.mark.parametrize("algo", ["torch-ppo-frugal", "torch-ppo-dr", "torch-ppo-random"])
+@pytest.mark.parametrize("algo", ["torch-ppo-dr", "torch-ppo-residual-random", "torch-ppo-residual-frugal"])
 def test_the_campaign_trains_the_single_file_ppo_once(tmp_path, algo):
     from agents import baselines
 
     out = tmp_path / algo / "seed0"
-    if algo in baselines.FINE_TUNED:  # it starts from its base run of the same seed, once that is finished
-        with pytest.raises(baselines.WaitsForRun, match=f"starts from {baselines.FINE_TUNED[algo]} seed0"):
-            baselines.train_run(algo, out, seed=0, total_timesteps=2048)
-        baselines.train_run(baselines.FINE_TUNED[algo], tmp_path / baselines.FINE_TUNED[algo] / "seed0", seed=0,
-                            total_timesteps=2048)
     baselines.train_run(algo, out, seed=0, total_timesteps=2048)
     assert baselines.is_finished(out)
     config = json.loads((out / "config.json").read_text())
     changed = {name: value for name, value in baselines.TORCH_PPO_VARIANTS[algo].items() if name != "total_timesteps"}
     assert changed and {name: config[name] for name in changed} == changed
     assert config["global_step"] == 2048 and config["seed"] == 0
-    if algo in baselines.FINE_TUNED:
-        assert config["init_from"] == str(tmp_path / baselines.FINE_TUNED[algo] / "seed0")
     summary = (out / "summary.json").read_text()
     baselines.train_run(algo, out, seed=0, total_timesteps=2048)  # finished: left as it is
     assert (out / "summary.json").read_text() == summary
@@ -184,13 +177,3 @@ def test_a_cached_evaluation_is_reused_only_for_the_same_model_condition_and_epi
     (run / "model.pt").write_bytes(model + b"\0")  # another model: not the cached one
     with pytest.raises(AssertionError, match="evaluated again"):
         compare.learned_episodes(env, run, c11, "pd", 3, 1000, True, cache)
-
-
-def test_the_campaign_trains_a_base_run_before_the_run_fine_tuned_from_it(tmp_path, capsys):
-    from agents import baselines
-
-    common = ["--seeds", "0", "--runs", str(tmp_path), "--total-timesteps", "2048"]
-    assert baselines.main(["--algos", "torch-ppo-frugal", *common]) == []  # its base is not there
-    assert "torch-ppo-frugal seed 0: passed over: torch-ppo-frugal starts from torch-ppo" in capsys.readouterr().out
-    done = baselines.main(["--algos", "torch-ppo-frugal", "torch-ppo", *common])
-    assert [run.parent.name for run in done] == ["torch-ppo", "torch-ppo-frugal"]

@@ -11,7 +11,7 @@ import scara_gym  # noqa: F401
 from agents.evaluate import make_policy
 from agents.policies import run_episode
 from agents.torch_ppo import (Adam, Agent, Config, RunningMeanStd, main, make_env, ppo_gradients, ppo_loss,
-                              reward_weights, train)
+                              residual_mapping, reward_weights, train)
 
 
 def test_running_mean_std_matches_the_batch_statistics():
@@ -146,3 +146,27 @@ def test_a_run_starts_from_another_runs_policy_with_init_from(tmp_path):
         train(Config(**tiny, hidden_size=32, init_from=str(source), out=str(tmp_path / "other")))
     with pytest.raises(FileNotFoundError, match="init_from: no model.pt"):
         train(Config(**tiny, init_from=str(tmp_path / "nowhere"), out=str(tmp_path / "other2")))
+
+
+def test_the_residual_set_point_option_acts_around_the_target_in_training_and_evaluation(tmp_path):
+    from agents.residual import ResidualSetpoint
+    from agents.torch_ppo import TorchPPOPolicy
+
+    out = tmp_path / "run"
+    train(Config(num_envs=2, num_steps=8, num_minibatches=1, update_epochs=1, total_timesteps=16, randomize_target=True,
+                 residual_scale="2.5,2.5,0.05", residual_deadzone=0.5, out=str(out)))
+    env = gym.make("Scara-C11-v1", randomize_target=True)
+    obs, info = env.reset(seed=7)
+    policy = TorchPPOPolicy(env, out)
+    with torch.no_grad():
+        mean = policy.agent.heads(policy.agent.normalize(torch.as_tensor(obs)[None]))[0][0].clamp(-1, 1).numpy()
+    mapping = ResidualSetpoint(env.unwrapped.task, [2.5, 2.5, 0.05], 0.5)
+    assert np.array_equal(policy(obs), mapping(obs, mean.astype(np.float64))[0])
+    # inside the dead zone the set-point is the target itself, read from the observation
+    task = env.unwrapped.task
+    inside = mapping(obs, np.array([0.3, -0.49, 0.0]))[0]
+    np.testing.assert_allclose(task.setpoint_center + task.setpoint_half * inside, info["target"], atol=1e-6)
+    with pytest.raises(ValueError, match="residual_scale must be 3 finite numbers"):
+        residual_mapping(Config(residual_scale="1,2"), task)
+    with pytest.raises(ValueError, match="residual_scale: expected 3 numbers"):
+        train(Config(num_envs=2, num_steps=8, total_timesteps=16, residual_scale="a,b,c", out=str(tmp_path / "bad")))

@@ -96,6 +96,34 @@ def test_thread_count_does_not_change_the_rollouts():
     assert all(np.array_equal(a, b) for a, b in zip(*runs))
 
 
+THREADS_STARTED = """
+import os, sys
+import numpy as np
+from scara_gym.envs.vector import ScaraVectorEnv
+
+venv = ScaraVectorEnv(num_envs=8, control_mode="voltage", num_threads=int(sys.argv[1]))
+venv.reset(seed=0)
+before = len(os.listdir("/proc/self/task"))
+for _ in range(20):
+    venv.step(np.random.default_rng(0).uniform(-1, 1, (8, 3)))
+print(len(os.listdir("/proc/self/task")) - before)
+"""
+
+
+@pytest.mark.skipif(not os.path.isdir("/proc/self/task"), reason="counts threads through Linux's /proc")
+def test_a_one_thread_vector_env_starts_no_thread_pool():
+    # a parallel loop run with one thread still wakes numba's pool, whose idle OpenMP worker
+    # then spins on a core: the one-thread env steps on the calling thread alone
+    env = {**os.environ, "NUMBA_NUM_THREADS": "2"}
+    started = {}
+    for threads in (1, 2):
+        done = subprocess.run([sys.executable, "-c", THREADS_STARTED, str(threads)], env=env, capture_output=True,
+                              text=True, timeout=600)
+        assert done.returncode == 0, done.stderr[-2000:]
+        started[threads] = int(done.stdout.split()[-1])
+    assert started == {1: 0, 2: started[2]} and started[2] > 0, started  # two threads: the pool starts
+
+
 def test_thread_count_and_reset_are_checked():
     with pytest.raises(ValueError, match=r"num_threads must be an integer in \[1, "):
         ScaraVectorEnv(num_envs=2, num_threads=0)
