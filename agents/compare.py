@@ -293,6 +293,23 @@ def compare(runs_root: Path | None = Path("runs/baselines"), conditions: list[st
     return entries, traces
 
 
+def _compare_condition(arguments: tuple) -> tuple[list[dict], dict]:
+    runs_root, condition, kwargs = arguments
+    return compare(runs_root, [condition], **kwargs)
+
+
+def compare_in_parallel(runs_root: Path | None, conditions: list[str], jobs: int, **kwargs):
+    """compare() with the conditions spread over ``jobs`` processes: the same entries, in the
+    same order (each condition is evaluated on its own)."""
+    if jobs <= 1 or len(conditions) <= 1:
+        return compare(runs_root, conditions, **kwargs)
+    from concurrent.futures import ProcessPoolExecutor
+
+    with ProcessPoolExecutor(min(jobs, len(conditions))) as pool:
+        parts = list(pool.map(_compare_condition, [(runs_root, name, kwargs) for name in conditions]))
+    return [e for entries, _ in parts for e in entries], {k: v for _, traces in parts for k, v in traces.items()}
+
+
 MINIMUM_TIME_BOUND = 1.2217  # [s] the spec's continuous-time bound on the C11 target
 SHIFTS = ("load-x2", "wall-closer", "current-limits-15", "resistance+20")
 DOMAIN_RANDOMIZED_SUFFIX = "-dr"  # agents.baselines' algorithms trained with physics and wall drawn per episode
@@ -494,13 +511,16 @@ def main(argv: list[str] | None = None) -> list[dict]:
     parser.add_argument("--seed", type=int, default=1000, help="episode i uses seed + i")
     parser.add_argument("--no-optimal", action="store_true", help="leave out the optimal reference")
     parser.add_argument("--out", type=Path, default=Path("docs/results"))
+    parser.add_argument("--jobs", type=int, default=1, help="processes evaluating conditions side by side")
     parser.add_argument("--cache", type=Path, default=None, metavar="DIR",
                         help="keep learned runs' evaluations in DIR and reuse them (e.g. runs/compare-cache)")
     args = parser.parse_args(argv)
     if args.episodes < 1:
         parser.error(f"--episodes must be >= 1, got {args.episodes}")
-    entries, traces = compare(args.runs, args.conditions, args.episodes, args.seed, not args.no_optimal,
-                              cache=args.cache)
+    if args.jobs < 1:
+        parser.error(f"--jobs must be >= 1, got {args.jobs}")
+    entries, traces = compare_in_parallel(args.runs, args.conditions, args.jobs, episodes=args.episodes,
+                                          seed=args.seed, include_optimal=not args.no_optimal, cache=args.cache)
     args.out.mkdir(parents=True, exist_ok=True)
     command = "python -m agents.compare " + " ".join(argv if argv is not None else __import__("sys").argv[1:])
     (args.out / "comparison.json").write_text(json.dumps({"env_id": LATEST_ENV_ID, "command": command,

@@ -177,3 +177,10 @@ def test_a_cached_evaluation_is_reused_only_for_the_same_model_condition_and_epi
     (run / "model.pt").write_bytes(model + b"\0")  # another model: not the cached one
     with pytest.raises(AssertionError, match="evaluated again"):
         compare.learned_episodes(env, run, c11, "pd", 3, 1000, True, cache)
+
+
+def test_conditions_compared_in_parallel_give_the_sequential_entries():
+    kwargs = dict(episodes=2, verbose=False, bisection_tolerance=0.01, include_optimal=False)
+    sequential, _ = compare.compare(None, ["c11", "wall-closer"], **kwargs)
+    parallel, traces = compare.compare_in_parallel(None, ["c11", "wall-closer"], 2, **kwargs)
+    assert parallel == sequential and set(traces) == {"c11", "wall-closer"}
