@@ -417,7 +417,28 @@ def markdown(entries: list[dict]) -> str:
         met = {True: "yes", False: "**no**", None: "-"}[c["met"]]
         lines.append(f"| {c['target']} | {met} | {c['reached']} |")
     lines.append("")
-    return "\n".join(lines) + "\n" + condition_tables(entries)
+    return "\n".join(lines) + "\n" + overview(entries) + "\n" + condition_tables(entries)
+
+
+def overview(entries: list[dict]) -> str:
+    """Every policy across the conditions: time to target (IQM), with (success rate / collision
+    rate) where not every episode succeeds without a collision; "-" where none succeeds."""
+    conditions = list(dict.fromkeys(e["condition"] for e in entries))
+    lines = ["#### Overview: time to target, IQM (success rate / collision rate where not 1 / 0)", "",
+             "| policy | " + " | ".join(conditions) + " |", "|---|" + "---|" * len(conditions)]
+    for name in dict.fromkeys(e["name"].split(" (d=")[0] for e in entries):
+        cells = []
+        for condition in conditions:
+            found = [e for e in entries if e["condition"] == condition and e["name"].split(" (d=")[0] == name]
+            if not found:
+                cells.append("n/a")
+                continue
+            e = found[0]
+            time_text = "-" if e["success_rate"] == 0 else f"{e['time_iqm']:.3f} s"
+            clean = e["success_rate"] == 1.0 and e["collision_rate"] == 0.0
+            cells.append(time_text if clean else f"{time_text} ({e['success_rate']:.2f} / {e['collision_rate']:.2f})")
+        lines.append(f"| {name} | " + " | ".join(cells) + " |")
+    return "\n".join(lines) + "\n"
 
 
 def condition_tables(entries: list[dict]) -> str:

@@ -85,6 +85,8 @@ def test_comparison_command_writes_every_policy(tmp_path):
     table = compare.markdown(entries)
     assert "| optimal | optimal | voltage |" in table and "seed 1:" in table
     assert table.startswith("#### Targets") and "| optimal reference on the C11 target" in table
+    assert "| policy | c11 |\n" in table and "| pd | - (0.00 / 1.00) |\n" in table  # the overview
+    assert f"| optimal | {optimal['time_iqm']:.3f} s |\n" in table
     json.dumps(entries)  # the JSON other tools read
 
 
