@@ -145,13 +145,20 @@ def iqm_with_ci(scores: np.ndarray, reps: int = 2000, seed: int = 0) -> tuple[fl
     return float(point["x"][0]), [float(interval["x"][0, 0]), float(interval["x"][1, 0])]
 
 
+def probability_of_improvement(x: np.ndarray, y: np.ndarray) -> float:
+    """rliable.metrics.probability_of_improvement, vectorized over the tasks: per task the
+    Mann-Whitney U statistic over all (run of x, run of y) pairs, #(x > y) + #(x = y) / 2,
+    divided by the pairs, then averaged over the tasks (rliable's loop calls scipy once per
+    task and bootstrap sample: minutes per algorithm with 100 tasks and 2,000 samples)."""
+    pairs_x, pairs_y = x[:, None, :], y[None, :, :]
+    return float(np.mean((pairs_x > pairs_y).mean(axis=(0, 1)) + 0.5 * (pairs_x == pairs_y).mean(axis=(0, 1))))
+
+
 def probability_faster(learned: np.ndarray, reference: np.ndarray, reps: int = 2000,
                        seed: int = 0) -> tuple[float, list[float]]:
     """rliable's probability of improvement P(learned faster than reference), with its 95 % CI."""
-    from rliable import metrics
-
     point, interval = _interval_estimates(
-        {"x": [-learned, -reference]}, lambda x, y: np.array([metrics.probability_of_improvement(x, y)]), reps, seed)
+        {"x": [-learned, -reference]}, lambda x, y: np.array([probability_of_improvement(x, y)]), reps, seed)
     return float(point["x"][0]), [float(interval["x"][0, 0]), float(interval["x"][1, 0])]
 
 

@@ -24,6 +24,19 @@ def test_iqm_and_probability_of_improvement_on_known_scores():
     assert tie == 0.5
 
 
+def test_the_vectorized_probability_of_improvement_is_rliables():
+    from rliable import metrics
+
+    rng = np.random.default_rng(4)
+    for runs_x, runs_y in ((5, 1), (3, 4), (2, 2)):
+        x = rng.integers(0, 4, (runs_x, 30)).astype(float)  # few values: ties on purpose
+        y = rng.integers(0, 4, (runs_y, 30)).astype(float)
+        assert compare.probability_of_improvement(x, y) == pytest.approx(metrics.probability_of_improvement(x, y),
+                                                                         abs=1e-12)
+    same = rng.uniform(size=(3, 10))
+    assert compare.probability_of_improvement(same, same) == metrics.probability_of_improvement(same, same) == 0.5
+
+
 def test_a_condition_without_draws_runs_its_one_episode_once():
     """episodes_of(identical=True): the first episode stands for all where the first two are
     the same (a deterministic policy, nothing drawn), and every episode runs where they differ."""
