@@ -366,10 +366,10 @@ def train(config: Config, resume: bool = False) -> dict:
                 action, logprob, _, value = agent.act(x)
             obs_buf[step], actions_buf[step], logprobs[step], values[step], dones[step] = x, action, logprob, value, done
             clipped = action.clamp(-1.0, 1.0)
+            env_action = clipped if config.device == "cuda" else clipped.numpy()
             if mapping is not None:  # the agent's r becomes a set-point around the target
-                clipped = mapping(obs.numpy(), clipped.numpy())
-            next_obs, reward, terminated, truncated, info = envs.step(
-                clipped if config.device == "cuda" or mapping is not None else clipped.numpy())
+                env_action = mapping(obs.numpy(), env_action)
+            next_obs, reward, terminated, truncated, info = envs.step(env_action)
             reward = tensor(reward, device)
             terminated, truncated = tensor(terminated, device), tensor(truncated, device)
             episode_return += reward
@@ -474,9 +474,7 @@ def load_weights(agent: Agent, run_dir: Path) -> None:
     if mine != theirs:
         raise ValueError(f"init_from: {str(run_dir)!r} has (observation, action, hidden) sizes {theirs}, "
                          f"this run {mine}")
-    with torch.no_grad():
-        for name, value in agent.state_dict().items():  # in place: the parameters are views of one tensor
-            value.copy_(saved["state_dict"][name])
+    agent.load_state_dict(saved["state_dict"])  # copies in place: the parameters stay views of one tensor
 
 
 class TorchPPOPolicy:
