@@ -42,7 +42,7 @@ import numpy as np
 
 from agents.baselines import is_finished
 from agents.policies import DecHeuristic, PDPolicy, run_episode, smallest_safe_distance
-from scara_gym import DEFAULT_PARAMS, LATEST_ENV_ID, __version__
+from scara_gym import DEFAULT_PARAMS, TRAINING_ENV_ID, __version__
 
 TIME_LIMIT = 3.0  # s, the registered episode limit: the time of an episode that never arrives
 _axes = DEFAULT_PARAMS.axes
@@ -76,7 +76,7 @@ TASK_KWARGS = ("goal_tolerance",)
 an evaluation that uses a run's own reports them beside the benchmark's"""
 
 
-def make_env(condition: Condition, control_mode: str, env_id: str = LATEST_ENV_ID, **task):
+def make_env(condition: Condition, control_mode: str, env_id: str = TRAINING_ENV_ID, **task):
     """The condition's environment; task: TASK_KWARGS to set (default: the benchmark's own)."""
     import gymnasium as gym
 
@@ -182,7 +182,7 @@ def entry(name: str, kind: str, algorithm: str | None, mode: str, condition: str
     return row
 
 
-def learned_runs(runs_root: Path, env_id: str = LATEST_ENV_ID) -> dict[tuple[str, str], list[Path]]:
+def learned_runs(runs_root: Path, env_id: str = TRAINING_ENV_ID) -> dict[tuple[str, str], list[Path]]:
     """(algorithm, control mode) -> finished run folders, seed order."""
     groups: dict[tuple[str, str], list[Path]] = {}
     for config in sorted(Path(runs_root).glob(f"{env_id}/*/*/seed*/config.json")):
@@ -205,7 +205,7 @@ def evaluation_key(run_dir: Path, condition: Condition, mode: str, episodes: int
     for name in POLICY_FILES:
         if (Path(run_dir) / name).exists():
             digest.update(name.encode() + (Path(run_dir) / name).read_bytes())
-    digest.update(json.dumps([dataclasses.asdict(condition), mode, episodes, seed, LATEST_ENV_ID, __version__],
+    digest.update(json.dumps([dataclasses.asdict(condition), mode, episodes, seed, TRAINING_ENV_ID, __version__],
                              sort_keys=True).encode())
     return digest.hexdigest()[:32]
 
@@ -551,7 +551,7 @@ def main(argv: list[str] | None = None) -> list[dict]:
                                           seed=args.seed, include_optimal=not args.no_optimal, cache=args.cache)
     args.out.mkdir(parents=True, exist_ok=True)
     command = "python -m agents.compare " + " ".join(argv if argv is not None else __import__("sys").argv[1:])
-    (args.out / "comparison.json").write_text(json.dumps({"env_id": LATEST_ENV_ID, "command": command,
+    (args.out / "comparison.json").write_text(json.dumps({"env_id": TRAINING_ENV_ID, "command": command,
                                                            "targets": target_checks(entries),
                                                            "policies": entries}, indent=1))
     (args.out / "comparison.md").write_text(markdown(entries))

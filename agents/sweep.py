@@ -232,9 +232,9 @@ def main(argv: list[str] | None = None) -> list[dict]:
     parser.add_argument("--publish", type=Path, default=None, metavar="DEST",
                         help="copy the finished trials' runs to DEST/ENV_ID/MODE/ALGO/seedN (e.g. docs/results/runs)")
     args = parser.parse_args(argv)
-    from scara_gym import LATEST_ENV_ID
+    from scara_gym import TRAINING_ENV_ID
 
-    env_id, grid = args.env_id or LATEST_ENV_ID, parse_grid(args.grid)
+    env_id, grid = args.env_id or TRAINING_ENV_ID, parse_grid(args.grid)
     entries = run_sweep(args.algo, env_id, args.control_mode, args.seeds, grid, args.out, args.condition,
                         args.episodes, args.total_timesteps, args.address, args.cpus_per_trial, args.max_failures)
     print((args.out / "sweep.md").read_text())

@@ -31,7 +31,7 @@ from pathlib import Path
 import numpy as np
 import yaml
 
-from scara_gym import ENV_KWARGS, GOAL_ENV_IDS, LATEST_ENV_ID
+from scara_gym import ENV_KWARGS, GOAL_ENV_IDS, TRAINING_ENV_ID
 
 HYPERPARAMS = Path(__file__).with_name("hyperparams")
 SHIPPED_MODELS = Path(__file__).with_name("models")
@@ -42,7 +42,7 @@ RUN_KEYS = {"n_timesteps", "n_envs", "env_threads", "env_kwargs", "normalize", "
             "eval_freq", "eval_episodes", "torch_threads", "checkpoint_freq"}
 
 
-def load_hyperparams(algo: str, env_id: str = LATEST_ENV_ID, control_mode: str = "pd",
+def load_hyperparams(algo: str, env_id: str = TRAINING_ENV_ID, control_mode: str = "pd",
                      variant: str | None = None, path: Path | None = None) -> dict:
     """The block env_id -> control_mode (or "MODE-VARIANT" when given) of ALGO.yml."""
     if algo not in ALGORITHMS:
@@ -184,7 +184,7 @@ def _restore_history(path: Path, eval_callback, best_mean_reward: float) -> None
     eval_callback.best_mean_reward = best_mean_reward
 
 
-def train(algo: str, out: str | Path, env_id: str = LATEST_ENV_ID, control_mode: str = "pd", seed: int = 0,
+def train(algo: str, out: str | Path, env_id: str = TRAINING_ENV_ID, control_mode: str = "pd", seed: int = 0,
           hyperparams: dict | None = None, total_timesteps: int | None = None, progress_bar: bool = False,
           command: str | None = None) -> Path:
     """Train (or resume) one run into `out`; returns `out`. See the module docstring."""

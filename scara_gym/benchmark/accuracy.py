@@ -24,7 +24,7 @@ from scara_gym import ENV_VERSIONS, LATEST_ENV_ID
 from scara_gym.model import records as R
 
 REFERENCE_TOLERANCES = (1e-10, 1e-12)
-# the tolerances under test by default: those Scara-C11-v1 registers
+# the tolerances under test by default: those of the latest id (Scara-C11-v2)
 DEFAULT_RTOL = ENV_VERSIONS[LATEST_ENV_ID]["rtol"]
 DEFAULT_ATOL = ENV_VERSIONS[LATEST_ENV_ID]["atol"]
 # the targets of the issue "Exact at the default tolerance", per control step

@@ -150,14 +150,14 @@ class ScaraEnv(gym.Env):
     - params (None): a ScaraParams, or a dict of dotted-path overrides of the C11
       defaults, e.g. {"arm.load_mass": 1.0, "obstacle.height": 0.2}.
     - rtol (1e-05): relative integration tolerance inside the step (scipy's meaning),
-      in [1e-14, 1e-2]; Scara-C11-v1 registers 1e-6.
+      in [1e-14, 1e-2]; Scara-C11-v1 registers 1e-6, Scara-C11-v2 1e-7.
     - atol (1e-06): absolute integration tolerance inside the step, in [1e-16, 1e-2];
-      Scara-C11-v1 registers 1e-8. How close a tolerance stays to a tight-tolerance run
-      is measured by ``scara-c11 accuracy``.
+      Scara-C11-v1 registers 1e-8, Scara-C11-v2 1e-9. How close a tolerance stays to a
+      tight-tolerance run is measured by ``scara-c11 accuracy``.
     - exact_switches (False): locate every mode switch inside the integration steps
       (a current limit or the PD law's saturation reached and left within one step is
-      found; the saturation is a located switch, not a kink); Scara-C11-v1 registers
-      True. False is the 0.1 integration of Scara-C11-v0, which sees switches at the
+      found; the saturation is a located switch, not a kink); Scara-C11-v1 and -v2
+      register True. False is the 0.1 integration of Scara-C11-v0, which sees switches at the
       ends of integration steps only.
     - randomize_params (False): False, True ("physics"), "physics", "wall", "all" or a
       dict {dotted path: (low, high)}: parameters drawn per episode, see the starting
@@ -181,6 +181,10 @@ class ScaraEnv(gym.Env):
     The ids differ only in the integration arguments they register (``scara_gym.ENV_VERSIONS``);
     the class defaults are v0's.
 
+    - v2: v1's exact switches (``exact_switches=True``) at ``rtol=1e-7``, ``atol=1e-9``:
+      within every accuracy target of ``scara-c11 accuracy``, including the currents just
+      after the voltage jump at the critical switch in "voltage" mode, at about 1.45x v1's
+      right-hand-side evaluations per step. The same physics as v1: policies carry over.
     - v1: exact switches (``exact_switches=True``) and ``rtol=1e-6``, ``atol=1e-8``: every
       current-limit, PD-saturation, critical, wall and target switch is located inside
       the integration steps; at these tolerances the states follow an rtol 1e-10 run within

@@ -53,6 +53,10 @@ def test_shipped_solution_replays_in_the_environment():
     assert result["reach_time"] == pytest.approx(data["replay"]["reach_time"], abs=1e-9)
     # the replay ends inside the planned steps: the PD fallback is never used
     assert result["steps"] <= len(data["held"]["actions"])
+    # the same physics at v2's tighter tolerances: the same arrival to the accuracy targets' 1e-6 s
+    tighter = replay(np.array(data["held"]["actions"]), env_id="Scara-C11-v2")
+    assert tighter["success"] and tighter["collisions"] == 0
+    assert tighter["reach_time"] == pytest.approx(result["reach_time"], abs=1e-6)
 
 
 def test_optimal_policy_in_the_environment_and_its_mode():

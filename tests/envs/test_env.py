@@ -419,10 +419,11 @@ def test_each_registered_id_fixes_its_integration_arguments(env_id):
         scara_gym.ENV_KWARGS[env_id]
 
 
-def test_v1_is_deterministic_for_a_seed_and_passes_check_env():
+@pytest.mark.parametrize("env_id", ["Scara-C11-v1", "Scara-C11-v2"])
+def test_exact_ids_are_deterministic_for_a_seed_and_pass_check_env(env_id):
     runs = []
     for _ in range(2):
-        env = gym.make("Scara-C11-v1", control_mode="voltage", randomize_target=True)
+        env = gym.make(env_id, control_mode="voltage", randomize_target=True)
         obs, _ = env.reset(seed=11)
         rng = np.random.default_rng(11)
         trace = [obs]
@@ -433,9 +434,9 @@ def test_v1_is_deterministic_for_a_seed_and_passes_check_env():
                 break
         runs.append(np.concatenate(trace))
     assert np.array_equal(runs[0], runs[1])
+    env = gym.make(env_id).unwrapped  # v1 warns that v2 exists; check_env must not warn
+    env.metadata = {**env.metadata, "render_modes": ["rgb_array"]}  # headless: see above
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        env = gym.make("Scara-C11-v1").unwrapped
-        env.metadata = {**env.metadata, "render_modes": ["rgb_array"]}  # headless: see above
         check_env(env)
     assert [str(w.message) for w in caught] == []
