@@ -19,7 +19,8 @@ from gymnasium.envs.registration import register, registry  # noqa: E402
 ENV_VERSIONS = {
     # v0: the 0.1 integration, switches seen at the ends of integration steps
     "Scara-C11-v0": {"rtol": 1e-5, "atol": 1e-6, "exact_switches": False},
-    # v1: every mode switch located inside the steps, tolerances that meet the accuracy targets
+    # v1: every mode switch located inside the steps; within the accuracy targets except the
+    # currents right after the critical switch's voltage jump ("voltage" mode)
     "Scara-C11-v1": {"rtol": 1e-6, "atol": 1e-8, "exact_switches": True},
     # v2: v1 at rtol 1e-7 / atol 1e-9, which also keeps the currents after the voltage jump at the
     # critical switch within the targets (1.45x v1's right-hand sides; README, "Accuracy")
