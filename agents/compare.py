@@ -162,6 +162,13 @@ def probability_faster(learned: np.ndarray, reference: np.ndarray, reps: int = 2
     return float(point["x"][0]), [float(interval["x"][0, 0]), float(interval["x"][1, 0])]
 
 
+def training_seconds(config: dict) -> float | None:
+    """A run's training time from its config.json; a fine-tuned run's counts the run it started
+    from (agents.baselines.FINE_TUNES)."""
+    seconds = config.get("train_seconds")
+    return None if seconds is None else seconds + config.get("base_train_seconds", 0.0)
+
+
 def entry(name: str, kind: str, algorithm: str | None, mode: str, condition: str, runs: list[dict],
           seeds: list[int] | None, note: str = "", train_seconds: list[float] | None = None) -> dict:
     success = np.concatenate([r["success"] for r in runs])
@@ -290,7 +297,7 @@ def compare(runs_root: Path | None = Path("runs/baselines"), conditions: list[st
             runs = [learned_episodes(env, d, condition, mode, episodes, seed, same, cache) for d in run_dirs]
             configs = [json.loads((d / "config.json").read_text()) for d in run_dirs]
             add(algorithm, "learned", algorithm, mode, runs, [c["seed"] for c in configs],
-                train_seconds=[c.get("train_seconds") for c in configs])
+                train_seconds=[training_seconds(c) for c in configs])
             if reference is not None:
                 p, ci = probability_faster(time_scores(runs), time_scores(reference))
                 entries[-1]["probability_faster_than_heuristic"] = p

@@ -228,6 +228,8 @@ def main(argv: list[str] | None = None) -> list[dict]:
     parser.add_argument("--out", type=Path, default=Path("runs/sweeps/default"))
     parser.add_argument("--address", default=None, help="an existing Ray cluster (default: a local runtime)")
     parser.add_argument("--cpus-per-trial", type=float, default=1.0)
+    parser.add_argument("--max-concurrent", type=int, default=None,
+                        help="trials at once (default: as many as the CPUs allow); 1 leaves the other cores free")
     parser.add_argument("--max-failures", type=int, default=2, help="retries of a failed trial")
     parser.add_argument("--publish", type=Path, default=None, metavar="DEST",
                         help="copy the finished trials' runs to DEST/ENV_ID/MODE/ALGO/seedN (e.g. docs/results/runs)")
@@ -236,7 +238,8 @@ def main(argv: list[str] | None = None) -> list[dict]:
 
     env_id, grid = args.env_id or TRAINING_ENV_ID, parse_grid(args.grid)
     entries = run_sweep(args.algo, env_id, args.control_mode, args.seeds, grid, args.out, args.condition,
-                        args.episodes, args.total_timesteps, args.address, args.cpus_per_trial, args.max_failures)
+                        args.episodes, args.total_timesteps, args.address, args.cpus_per_trial, args.max_failures,
+                        max_concurrent=args.max_concurrent)
     print((args.out / "sweep.md").read_text())
     if args.publish is not None:
         for point in grid_points(grid):

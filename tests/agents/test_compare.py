@@ -112,7 +112,8 @@ def test_a_condition_without_a_shipped_optimal_solution_is_compared_without_it(m
     assert "optimal: no shipped solution (python -m agents.optimal --condition c11" in capsys.readouterr().out
 
 
-@pytest.mark.parametrize("algo", ["torch-ppo-dr", "torch-ppo-residual-random", "torch-ppo-residual-frugal"])
+@pytest.mark.parametrize("algo", ["torch-ppo-dr", "torch-ppo-residual-random", "torch-ppo-residual-frugal",
+                                  "torch-ppo-residual-random-safe-fast"])
 def test_the_campaign_trains_the_single_file_ppo_once(tmp_path, algo):
     from agents import baselines
 
@@ -199,3 +200,19 @@ def test_conditions_compared_in_parallel_give_the_sequential_entries():
     sequential, _ = compare.compare(None, ["c11", "wall-closer"], **kwargs)
     parallel, traces = compare.compare_in_parallel(None, ["c11", "wall-closer"], 2, **kwargs)
     assert parallel == sequential and set(traces) == {"c11", "wall-closer"}
+
+
+def test_a_fine_tuned_variant_starts_from_its_base_run_and_counts_its_training_time(tmp_path):
+    from agents import baselines
+
+    algo = "torch-ppo-residual-random-safe-fast"
+    out = baselines.run_dir(tmp_path, "Scara-C11-v1", "pd", algo, 3)
+    baselines.train_run(algo, out, seed=3, total_timesteps=2048)
+    base = baselines.run_dir(tmp_path, "Scara-C11-v1", "pd", baselines.FINE_TUNES[algo], 3)
+    assert baselines.is_finished(base) and baselines.is_finished(out)
+    config, base_config = (json.loads((run / "config.json").read_text()) for run in (out, base))
+    assert config["init_from"] == str(base) and base_config["seed"] == config["seed"] == 3
+    assert base_config["reward_weights"] != config["reward_weights"]
+    assert config["base_train_seconds"] == base_config["train_seconds"] > 0
+    assert compare.training_seconds(config) == config["train_seconds"] + base_config["train_seconds"]
+    assert compare.training_seconds(base_config) == base_config["train_seconds"]

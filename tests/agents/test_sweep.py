@@ -65,3 +65,18 @@ def test_a_run_trained_for_a_looser_goal_is_evaluated_in_its_task_and_the_benchm
     with pytest.raises(ValueError, match="task arguments must be among"):
         from agents.compare import CONDITIONS, make_env
         make_env(CONDITIONS["c11"], "pd", "Scara-C11-v1", reward_type="dense")
+
+
+def test_the_command_line_passes_its_concurrency_limit_to_ray(tmp_path, monkeypatch):
+    seen = {}
+
+    def fake_sweep(*args, **kwargs):
+        seen.update(kwargs)
+        (tmp_path / "sweep.md").write_text("table")
+        return []
+
+    monkeypatch.setattr(sweep, "run_sweep", fake_sweep)
+    sweep.main(["--algo", "ppo", "--seeds", "0", "--out", str(tmp_path), "--max-concurrent", "1"])
+    assert seen["max_concurrent"] == 1
+    sweep.main(["--algo", "ppo", "--seeds", "0", "--out", str(tmp_path)])
+    assert seen["max_concurrent"] is None
