@@ -371,12 +371,13 @@ def minimum_time(problem: str = "held", start=(0.0, 0.0, 0.0), target=(2.0, 2.0,
     return solution
 
 
-def cached_solution(start=(0.0, 0.0, 0.0), target=(2.0, 2.0, 0.3), params: ScaraParams = DEFAULT_PARAMS) -> dict | None:
-    """The shipped held solution for this start, target and parameter set, if there is one."""
+def cached_solution(start=(0.0, 0.0, 0.0), target=(2.0, 2.0, 0.3), params: ScaraParams = DEFAULT_PARAMS,
+                    wall_margin: float = CollocationConfig.wall_margin) -> dict | None:
+    """The shipped held solution for this start, target, parameter set and wall margin, if there is one."""
     for path in sorted(SOLUTIONS.glob("*.json")):
         data = json.loads(path.read_text())
         if (np.allclose(data["start"], start, atol=1e-12) and np.allclose(data["target"], target, atol=1e-12)
-                and data["params"] == _params_key(params)):
+                and data["params"] == _params_key(params) and data["config"]["wall_margin"] == wall_margin):
             return data
     return None
 
@@ -450,6 +451,39 @@ def replay(actions: np.ndarray, env_id: str = "Scara-C11-v1", start=(0.0, 0.0, 0
     return run_episode(env, policy, seed=0)
 
 
+def reference_snapshots(env_id: str = "Scara-C11-v1", start=(0.0, 0.0, 0.0), target=(2.0, 2.0, 0.3),
+                        params: ScaraParams = DEFAULT_PARAMS,
+                        wall_margin: float = CollocationConfig.wall_margin) -> list[dict]:
+    """The states the optimal reference (its shipped solution with this wall margin) passes
+    through in the environment, one after each of its control steps before the last (the one
+    that reaches the target), as ``ScaraTask.snapshot`` gives them: starts for reference state
+    initialization (agents.torch_ppo's ``demo_resets``). Raises if the replay does not reach
+    the target."""
+    import gymnasium as gym
+
+    data = cached_solution(start, target, params, wall_margin)
+    if data is None:
+        raise LookupError(f"no shipped minimum-time solution from {list(start)} to {list(target)} with wall margin "
+                          f"{wall_margin} m (python -m agents.optimal --wall-margin M --write FILE makes one)")
+    env = gym.make(env_id, control_mode="voltage", params=params, start=tuple(start), target=tuple(target))
+    task = env.unwrapped.task
+    policy = OptimalPolicy(env)
+    policy.plans[tuple(np.round(np.concatenate([start, target]), 12))] = np.array(data["held"]["actions"])
+    obs, _ = env.reset(seed=0)
+    policy.reset()
+    snapshots = []
+    while True:
+        obs, _, terminated, truncated, info = env.step(policy(obs))
+        if terminated or truncated:
+            break
+        snapshots.append(task.snapshot(0))
+    env.close()
+    if not info["is_success"] or info["collisions"]:
+        raise RuntimeError(f"the optimal reference from {list(start)} to {list(target)} does not reach the "
+                           f"target without a collision in {env_id}")
+    return snapshots
+
+
 def main(argv: list[str] | None = None) -> dict:
     parser = argparse.ArgumentParser(prog="python -m agents.optimal", description=__doc__.split("\n\n")[0])
     parser.add_argument("--start", nargs=3, type=float, default=list(DEFAULT_PARAMS.task.start))
@@ -459,6 +493,9 @@ def main(argv: list[str] | None = None) -> dict:
     parser.add_argument("--condition", default="c11",
                         help="a parameter shift of agents.compare.CONDITIONS (load-x2, wall-closer, "
                              "current-limits-15, resistance+20); default c11, the C11 parameters")
+    parser.add_argument("--wall-margin", type=float, default=CollocationConfig.wall_margin,
+                        help="m, distance the held solution keeps from the wall plane while below h_obs (default "
+                             "%(default)s; a wider one gives agents.torch_ppo's demo resets states with slack)")
     parser.add_argument("--verbose", action="store_true")
     args = parser.parse_args(argv)
     from agents.compare import CONDITIONS
@@ -467,7 +504,10 @@ def main(argv: list[str] | None = None) -> dict:
     if args.condition not in shifts:
         parser.error(f"--condition must be one of {shifts}, got {args.condition!r}")
     params = DEFAULT_PARAMS.replace(CONDITIONS[args.condition].params)
-    config = CollocationConfig()
+    if not 0.0 <= args.wall_margin < params.obstacle.critical_distance:
+        parser.error(f"--wall-margin must be in [0, {params.obstacle.critical_distance}) m (the critical band), "
+                     f"got {args.wall_margin}")
+    config = CollocationConfig(wall_margin=args.wall_margin)
     bound_config = CollocationConfig(wall_margin=0.0, band_margin=0.0)
     started = time.perf_counter()
     free = minimum_time("free", args.start, args.target, params, config=bound_config, verbose=args.verbose)
@@ -485,7 +525,9 @@ def main(argv: list[str] | None = None) -> dict:
             "seconds": time.perf_counter() - started,
             "command": "python -m agents.optimal" + (f" --start {' '.join(map(str, args.start))}"
                                                      f" --target {' '.join(map(str, args.target))}"
-                                                     f" --condition {args.condition}")}
+                                                     f" --condition {args.condition}")
+                       + (f" --wall-margin {args.wall_margin}" if args.wall_margin != CollocationConfig.wall_margin
+                          else "")}
     if args.write:
         args.write.parent.mkdir(parents=True, exist_ok=True)
         args.write.write_text(json.dumps(data, indent=1))

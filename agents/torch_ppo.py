@@ -65,6 +65,8 @@ class Config:
     compile: bool = False          # torch.compile the minibatch gradient
     checkpoint_every: int = 10     # updates between checkpoints
     init_from: str = ""            # a finished run of this file to start from (its model.pt), e.g. to fine-tune
+    demo_resets: float = 0.0       # share of training episodes that start on the optimal reference's path (DemoResets)
+    demo_wall_margin: float = 1e-3 # m, the wall margin of that reference (a shipped solution of agents.optimal)
     out: str = "runs/torch_ppo"
 
     @property
@@ -275,6 +277,40 @@ def residual_mapping(config: Config, task):
     return ResidualSetpoint(task, scale, config.residual_deadzone)
 
 
+class DemoResets:
+    """Reference state initialization (DeepMimic's RSI, Peng et al. 2018): each training episode
+    starts, with probability ``config.demo_resets``, from a state the optimal reference
+    (agents.optimal) passes through at a uniformly drawn control step, instead of at rest.
+    Only the states are borrowed, not the reference's actions: the agent still learns what to do
+    there from the reward, but it meets the critical band with axis 3 at the widened voltage,
+    which the minimum-time path uses and exploration from rest rarely finds. The reference with
+    the default 1 mm wall margin passes the wall so closely that from its states in the band an
+    imperfect policy cannot avoid a collision; ``demo_wall_margin`` picks a reference that keeps
+    more. Evaluation always starts at rest. Needs the C11 start and target and fixed parameters."""
+
+    def __init__(self, envs, config: Config) -> None:
+        if not 0.0 <= config.demo_resets <= 1.0:
+            raise ValueError(f"demo_resets must be in [0, 1], got {config.demo_resets!r}")
+        if config.randomize_target or config.randomize_params or config.device != "cpu":
+            raise ValueError("demo_resets: the reference path is the C11 target's with the nominal parameters, "
+                             "on the CPU env; use it without randomize_target, randomize_params and device='cuda'")
+        from agents.optimal import reference_snapshots
+
+        self.task = envs.unwrapped.task
+        self.snapshots = reference_snapshots(config.env_id, params=self.task.params,
+                                             wall_margin=config.demo_wall_margin)
+        self.probability = config.demo_resets
+        self.rng = np.random.default_rng(config.seed)
+
+    def __call__(self, obs: np.ndarray, rows) -> np.ndarray:
+        """obs with the robots of ``rows`` (just reset) moved to reference states where drawn."""
+        for i in rows:
+            if self.rng.random() < self.probability:
+                self.task.restore(int(i), self.snapshots[self.rng.integers(len(self.snapshots))])
+                obs[i] = self.task.obs[i]
+        return obs
+
+
 def make_env(config: Config):
     weights = reward_weights(config.reward_weights)
     return gym.make_vec(config.env_id, num_envs=config.num_envs, vectorization_mode="vector_entry_point",
@@ -351,6 +387,9 @@ def train(config: Config, resume: bool = False) -> dict:
     finished = {"return": [], "success": [], "collision": []}
 
     obs, _ = envs.reset(seed=config.seed + 1000 * (start_update - 1))  # resumed runs start new episodes
+    demo_resets = DemoResets(envs, config) if config.demo_resets else None
+    if demo_resets is not None:
+        obs = demo_resets(obs, range(n))
     obs = tensor(obs, device)
     done = torch.zeros(n, device=device)
     started = time.perf_counter()
@@ -392,6 +431,8 @@ def train(config: Config, resume: bool = False) -> dict:
                 finished["collision"] += (tensor(info["collisions"], device)[rows] > 0).tolist()
                 episode_return[rows] = 0.0
                 discounted[rows] = 0.0
+                if demo_resets is not None:
+                    next_obs = demo_resets(next_obs, rows.tolist())
             obs, done = tensor(next_obs, device), ended.to(torch.float32)
 
         # -- advantages (GAE) ------------------------------------------------------------

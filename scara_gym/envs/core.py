@@ -228,6 +228,23 @@ def begin_robot(i, start, target, robots, params, config, task, outcomes, obs):
 
 
 @njit(**JIT)
+def restore_robot(i, x, hold, t, step_size, episode_steps, robots, params, config, task, outcomes, obs):
+    """Robot i in a state of an earlier episode of the same target and parameters: its state
+    vector x (energy included), current holds, time t and the integrator's next step size
+    (the episode goes on bit for bit), after episode_steps steps."""
+    robot = robots[i]
+    for k in range(robot.x.shape[0]):
+        robot.x[k] = x[k]
+    start_episode(robot, params[i], config[0], task[0], outcomes[i], obs[i])
+    for axis in range(3):  # a current at its limit stays held: the free law would push it past
+        robot.hold[axis] = hold[axis]
+    robot.t = t
+    robot.step_size = step_size
+    outcomes[i].episode_steps = episode_steps
+    observe(robot, params[i], task[0], obs[i])  # time_left at t
+
+
+@njit(**JIT)
 def step_robot(i, action, robots, params, config, task, log, outcomes, obs):
     return robot_step(action, robots[i], params[i], config[0], task[0], log[i], outcomes[i], obs[i],
                       new_workspace())

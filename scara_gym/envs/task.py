@@ -23,8 +23,8 @@ from typing import NamedTuple
 import numpy as np
 
 from scara_gym.envs.core import (
-    N_INFO, N_OBS, OBSERVATION, OUTCOME, REWARD_TERMS, TASK, begin_robot, pack_info, pd_actions, step_robot,
-    step_robots, step_robots_serial,
+    N_INFO, N_OBS, OBSERVATION, OUTCOME, REWARD_TERMS, TASK, begin_robot, pack_info, pd_actions, restore_robot,
+    step_robot, step_robots, step_robots_serial,
 )
 from scara_gym.model import records as R
 from scara_gym.model.dynamics import tip_position
@@ -340,6 +340,30 @@ class ScaraTask:
         if self.actuator is not None:  # before the episode the robot rests: the neutral action
             self.actuator.reset(i, self.setpoint_to_action(start) if self.control_mode == "pd" else np.zeros(3))
         begin_robot(i, start, target, self.robots, self.robot_params, self.config, self.task, self.outcomes, self.obs)
+
+    def snapshot(self, i: int) -> dict:
+        """Robot i's state as ``restore`` takes it (copies): state vector, current holds, time,
+        the integrator's next step size, steps taken, and the target and parameters it holds for."""
+        robot = self.robots[i]
+        return {"x": robot["x"].copy(), "hold": robot["hold"].copy(), "t": float(robot["t"]),
+                "step_size": float(robot["step_size"]),
+                "episode_steps": int(self.outcomes[i]["episode_steps"]),
+                "target": self.robot_params[i]["target"].copy(), "params": self.episode_params[i]}
+
+    def restore(self, i: int, snapshot: dict) -> None:
+        """Robot i, in an episode with the snapshot's target and parameters, put in the
+        snapshot's state: the episode goes on from there (its step's reward terms zero). For
+        starts along a recorded trajectory, as in reference state initialization."""
+        if self.actuator is not None:
+            raise ValueError("restore: the action_delay / action_rate_limit line has a state a snapshot lacks")
+        if snapshot["params"] != self.episode_params[i] or not np.array_equal(snapshot["target"],
+                                                                              self.robot_params[i]["target"]):
+            raise ValueError(f"restore: robot {i}'s episode has another target or other parameters than the "
+                             f"snapshot's (target {np.asarray(snapshot['target']).tolist()}); reset it to those first")
+        restore_robot(i, np.asarray(snapshot["x"], dtype=np.float64), np.asarray(snapshot["hold"], dtype=np.int64),
+                      float(snapshot["t"]), float(snapshot["step_size"]), int(snapshot["episode_steps"]),
+                      self.robots, self.robot_params,
+                      self.config, self.task, self.outcomes, self.obs)
 
     # -- steps ---------------------------------------------------------------------------
     def step_robot(self, i: int, action: np.ndarray) -> None:

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 import scara_gym  # noqa: F401
-from agents.optimal import SOLUTIONS, OptimalPolicy, cached_solution, replay
+from agents.optimal import SOLUTIONS, OptimalPolicy, cached_solution, reference_snapshots, replay
 from agents.policies import run_episode
 from scara_gym.model import records as R
 from scara_gym.model.dynamics import derivative
@@ -72,6 +72,45 @@ def test_optimal_policy_in_the_environment_and_its_mode():
         run_episode(env, policy, seed=0, options={"target": [1.5, 2.5, 0.25]})
 
 
+def test_reference_snapshots_are_the_replayed_path():
+    data = cached_solution()
+    actions = np.array(data["held"]["actions"])
+    snapshots = reference_snapshots()
+    replayed = replay(actions)
+    assert len(snapshots) == replayed["steps"] - 1
+    assert [s["episode_steps"] for s in snapshots] == list(range(1, len(snapshots) + 1))
+    np.testing.assert_allclose([s["t"] for s in snapshots], 0.01 * np.arange(1, len(snapshots) + 1), atol=1e-12)
+    # from the last snapshot, the last planned action reaches the target at the replay's instant
+    env = gym.make("Scara-C11-v1", control_mode="voltage")
+    env.reset(seed=0)
+    env.unwrapped.task.restore(0, snapshots[-1])
+    _, _, terminated, _, info = env.step(actions[len(snapshots)])
+    assert terminated and info["is_success"] and info["reach_time"] == pytest.approx(replayed["reach_time"], abs=1e-12)
+
+
+def test_the_wider_wall_margin_reference_keeps_its_distance():
+    """The C11 solution with an 8 mm wall margin (demo resets' reference): below h_obs its tip
+    stays 8 mm or more from the wall plane at every recorded instant, a little slower than the
+    1 mm one; an unknown margin is not made up."""
+    from agents.optimal import main
+
+    data = cached_solution(wall_margin=0.008)
+    assert data is not None and data["command"].endswith("--wall-margin 0.008")
+    env = gym.make("Scara-C11-v1", control_mode="voltage")
+    policy = OptimalPolicy(env)
+    policy.plans[(0.0, 0.0, 0.0, 2.0, 2.0, 0.3)] = np.array(data["held"]["actions"])
+    result = run_episode(env, policy, seed=0, record=True)
+    _, _, _, wall_distance, height_margin, _ = result["trace"].T
+    assert result["success"] and result["collisions"] == 0
+    assert np.all(np.abs(wall_distance[height_margin < 0]) >= 0.008 - 1e-6)
+    assert cached_solution()["replay"]["reach_time"] < result["reach_time"] < 1.02 * SPEC_BOUND
+    assert cached_solution(wall_margin=0.005) is None
+    with pytest.raises(LookupError, match="wall margin 0.005 m"):
+        reference_snapshots(wall_margin=0.005)
+    with pytest.raises(SystemExit):
+        main(["--wall-margin", "0.02"])
+
+
 def test_shipped_solution_file_is_complete():
     for path in SOLUTIONS.glob("*.json"):
         data = json.loads(path.read_text())
@@ -90,7 +129,7 @@ def test_every_shipped_solution_replays_in_its_own_condition():
     for path in sorted(SOLUTIONS.glob("*.json")):
         data = json.loads(path.read_text())
         params = DEFAULT_PARAMS.replace(CONDITIONS[data.get("condition", "c11")].params)
-        assert cached_solution(data["start"], data["target"], params) == data, path.name
+        assert cached_solution(data["start"], data["target"], params, data["config"]["wall_margin"]) == data, path.name
         result = replay(np.array(data["held"]["actions"]), start=data["start"], target=data["target"],
                         params=params)
         assert result["success"] and result["collisions"] == 0, path.name

@@ -10,8 +10,8 @@ import torch
 import scara_gym  # noqa: F401
 from agents.evaluate import make_policy
 from agents.policies import run_episode
-from agents.torch_ppo import (Adam, Agent, Config, RunningMeanStd, main, make_env, ppo_gradients, ppo_loss,
-                              residual_mapping, reward_weights, train)
+from agents.torch_ppo import (Adam, Agent, Config, DemoResets, RunningMeanStd, main, make_env, ppo_gradients,
+                              ppo_loss, residual_mapping, reward_weights, train)
 
 
 def test_running_mean_std_matches_the_batch_statistics():
@@ -170,3 +170,27 @@ def test_the_residual_set_point_option_acts_around_the_target_in_training_and_ev
         residual_mapping(Config(residual_scale="1,2"), task)
     with pytest.raises(ValueError, match="residual_scale: expected 3 numbers"):
         train(Config(num_envs=2, num_steps=8, total_timesteps=16, residual_scale="a,b,c", out=str(tmp_path / "bad")))
+
+
+def test_demo_resets_start_episodes_on_the_reference_path_and_training_uses_them(tmp_path):
+    config = Config(num_envs=8, demo_resets=1.0)
+    envs = make_env(config)
+    obs, _ = envs.reset(seed=0)
+    resets = DemoResets(envs, config)
+    moved = resets(obs.copy(), range(8))
+    times = {round(s["t"], 6): s for s in resets.snapshots}
+    for i in range(8):  # each robot stands where the reference stood at some step, and sees it
+        state = envs.unwrapped.task.snapshot(i)
+        assert np.array_equal(state["x"], times[round(state["t"], 6)]["x"])
+        assert np.array_equal(moved[i], envs.unwrapped.task.obs[i])
+    assert moved[:, -1].max() < 1.0  # time_left: no robot at the start
+    none = DemoResets(envs, Config(num_envs=8, demo_resets=0.0))
+    assert np.array_equal(none(obs.copy(), range(8)), obs)
+    with pytest.raises(ValueError, match=r"demo_resets must be in \[0, 1\]"):
+        DemoResets(envs, Config(demo_resets=1.5))
+    with pytest.raises(ValueError, match="without randomize_target"):
+        DemoResets(envs, Config(demo_resets=0.5, randomize_target=True))
+    out = tmp_path / "rsi"
+    train(Config(num_envs=2, num_steps=8, num_minibatches=1, update_epochs=1, total_timesteps=32, demo_resets=0.5,
+                 residual_scale="2.5,2.5,0.05", residual_deadzone=0.5, out=str(out)))
+    assert json.loads((out / "config.json").read_text())["demo_resets"] == 0.5

@@ -204,6 +204,42 @@ def test_pickling_round_trips_mid_episode():
         assert np.array_equal(left[0], right[0]) and left[1] == right[1]
 
 
+@pytest.mark.parametrize("control_mode", ["pd", "voltage"])
+def test_a_restored_snapshot_goes_on_as_the_episode_it_was_taken_from(control_mode):
+    """ScaraTask.snapshot / restore: a robot put in another episode's state at step k takes
+    the same steps from there, bit for bit, up to the same truncation step of the vector env
+    (whose time limit reads the task's step count; a single env's TimeLimit wrapper counts its own)."""
+    rng = np.random.default_rng(4)
+    actions = rng.uniform(-1, 1, size=(300, 1, 3))
+    source, copy = (gym.make_vec("Scara-C11-v1", num_envs=1, vectorization_mode="vector_entry_point",
+                                 control_mode=control_mode) for _ in range(2))
+    source.reset(seed=0)
+    for a in actions[:37]:
+        source.step(a)
+    snapshot = source.unwrapped.task.snapshot(0)
+    copy.reset(seed=1)
+    copy.unwrapped.task.restore(0, snapshot)
+    assert np.array_equal(copy.unwrapped.task.obs[0], source.unwrapped.task.obs[0])
+    for k, a in enumerate(actions[37:], start=38):
+        left, right = source.step(a), copy.step(a)
+        assert all(np.array_equal(x, y) for x, y in zip(left[:4], right[:4]))
+        assert left[4].keys() == right[4].keys()
+        for key in left[4]:
+            if not key.startswith("final"):
+                np.testing.assert_array_equal(left[4][key], right[4][key])  # NaN where both NaN
+        if left[2][0] or left[3][0]:
+            break
+    assert k == 300 and left[3][0]  # the time limit counted from the source's start
+    task = gym.make("Scara-C11-v1", control_mode=control_mode).unwrapped.task
+    task.reset_robot(0, np.random.default_rng(0), {"target": [1.0, 1.0, 0.2]})
+    with pytest.raises(ValueError, match="another target or other parameters"):
+        task.restore(0, snapshot)
+    delayed = gym.make("Scara-C11-v1", control_mode=control_mode, action_delay=1)
+    delayed.reset(seed=0)
+    with pytest.raises(ValueError, match="action_delay"):
+        delayed.unwrapped.task.restore(0, snapshot)
+
+
 def test_reward_terms_sum_to_the_reward_and_observations_stay_in_the_space():
     env = ScaraEnv(control_mode="voltage", collision="penalty", randomize_target=True)
     obs, _ = env.reset(seed=2)
