@@ -412,8 +412,13 @@ class OptimalPolicy:
         self.actions = None
         self.step_index = 0
 
+    @staticmethod
+    def plan_key(start, target) -> tuple:
+        """The key of ``plans`` for an episode from start to target."""
+        return tuple(np.round(np.concatenate([start, target]), 12))
+
     def plan(self, start, target) -> np.ndarray:
-        key = tuple(np.round(np.concatenate([start, target]), 12))
+        key = self.plan_key(start, target)
         if key not in self.plans:
             params = self.env.params
             data = cached_solution(start, target, params)
@@ -437,18 +442,24 @@ class OptimalPolicy:
         return self.env.pd_action(obs, target)
 
 
+def replaying(actions: np.ndarray, env_id: str, start, target, params: ScaraParams):
+    """A "voltage"-mode environment from start to target and an OptimalPolicy in it that
+    replays ``actions``."""
+    import gymnasium as gym
+
+    env = gym.make(env_id, control_mode="voltage", params=params, start=tuple(start), target=tuple(target))
+    policy = OptimalPolicy(env)
+    policy.plans[OptimalPolicy.plan_key(start, target)] = np.asarray(actions)
+    return env, policy
+
+
 def replay(actions: np.ndarray, env_id: str = "Scara-C11-v1", start=(0.0, 0.0, 0.0), target=(2.0, 2.0, 0.3),
            params: ScaraParams = DEFAULT_PARAMS) -> dict:
     """Held actions run in the environment ("voltage" mode); the episode summary of
     agents.policies.run_episode (success, collisions, reach_time, energy, ...)."""
-    import gymnasium as gym
-
     from agents.policies import run_episode
 
-    env = gym.make(env_id, control_mode="voltage", params=params, start=tuple(start), target=tuple(target))
-    policy = OptimalPolicy(env)
-    policy.plans[tuple(np.round(np.concatenate([start, target]), 12))] = np.asarray(actions)
-    return run_episode(env, policy, seed=0)
+    return run_episode(*replaying(actions, env_id, start, target, params), seed=0)
 
 
 def reference_snapshots(env_id: str = "Scara-C11-v1", start=(0.0, 0.0, 0.0), target=(2.0, 2.0, 0.3),
@@ -459,16 +470,12 @@ def reference_snapshots(env_id: str = "Scara-C11-v1", start=(0.0, 0.0, 0.0), tar
     that reaches the target), as ``ScaraTask.snapshot`` gives them: starts for reference state
     initialization (agents.torch_ppo's ``demo_resets``). Raises if the replay does not reach
     the target."""
-    import gymnasium as gym
-
     data = cached_solution(start, target, params, wall_margin)
     if data is None:
         raise LookupError(f"no shipped minimum-time solution from {list(start)} to {list(target)} with wall margin "
                           f"{wall_margin} m (python -m agents.optimal --wall-margin M --write FILE makes one)")
-    env = gym.make(env_id, control_mode="voltage", params=params, start=tuple(start), target=tuple(target))
+    env, policy = replaying(np.array(data["held"]["actions"]), env_id, start, target, params)
     task = env.unwrapped.task
-    policy = OptimalPolicy(env)
-    policy.plans[tuple(np.round(np.concatenate([start, target]), 12))] = np.array(data["held"]["actions"])
     obs, _ = env.reset(seed=0)
     policy.reset()
     snapshots = []

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 import scara_gym  # noqa: F401
-from agents.optimal import SOLUTIONS, OptimalPolicy, cached_solution, reference_snapshots, replay
+from agents.optimal import SOLUTIONS, OptimalPolicy, cached_solution, reference_snapshots, replay, replaying
 from agents.policies import run_episode
 from scara_gym.model import records as R
 from scara_gym.model.dynamics import derivative
@@ -96,9 +96,8 @@ def test_the_wider_wall_margin_reference_keeps_its_distance():
 
     data = cached_solution(wall_margin=0.008)
     assert data is not None and data["command"].endswith("--wall-margin 0.008")
-    env = gym.make("Scara-C11-v1", control_mode="voltage")
-    policy = OptimalPolicy(env)
-    policy.plans[(0.0, 0.0, 0.0, 2.0, 2.0, 0.3)] = np.array(data["held"]["actions"])
+    env, policy = replaying(np.array(data["held"]["actions"]), "Scara-C11-v1", data["start"], data["target"],
+                            DEFAULT_PARAMS)
     result = run_episode(env, policy, seed=0, record=True)
     _, _, _, wall_distance, height_margin, _ = result["trace"].T
     assert result["success"] and result["collisions"] == 0
