@@ -121,9 +121,9 @@ def algorithm_kwargs(algo: str, hyper: dict, n_actions: int) -> dict:
 
         kwargs["action_noise"] = NormalActionNoise(np.zeros(n_actions), hyper["noise_std"] * np.ones(n_actions))
     if kwargs.get("replay_buffer_class") == "HerReplayBuffer":  # hindsight relabeling for the goal envs
-        from stable_baselines3 import HerReplayBuffer
+        from agents.her import KeptInfoHerReplayBuffer  # SB3's, with replay_buffer_kwargs' info_keys
 
-        kwargs["replay_buffer_class"] = HerReplayBuffer
+        kwargs["replay_buffer_class"] = KeptInfoHerReplayBuffer
     return {"policy_kwargs": policy_kwargs, **kwargs}
 
 

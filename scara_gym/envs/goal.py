@@ -24,7 +24,7 @@ from scara_gym.envs.task import OBSERVATION_LAYOUT, OBSERVATION_NAMES
 from scara_gym.envs.vector import ScaraVectorEnv
 from scara_gym.model import checks
 
-REWARD_TYPES = ("sparse", "dense")
+REWARD_TYPES = ("sparse", "dense", "mixed")
 GOAL_SLACK = 1e-6
 MAX_GOAL_TOLERANCE = 1.0  # [rad and m]
 """[rad or m] added to acc in the goal test: covers the float32 rounding of the goals, so
@@ -83,10 +83,9 @@ class GoalRules:
         desired = np.asarray(desired_goal, dtype=np.float64)
         cost = _costs(info, None if achieved.ndim == 1 else achieved.shape[0])
         success = np.abs(achieved - desired).max(axis=-1) < self.threshold
-        if self.reward_type == "sparse":
-            goal = -(~success).astype(np.float64)
-        else:
-            goal = -np.linalg.norm((achieved - desired) / DISTANCE_SCALE, axis=-1)
+        steps = -(~success).astype(np.float64)
+        distance = -np.linalg.norm((achieved - desired) / DISTANCE_SCALE, axis=-1)
+        goal = {"sparse": steps, "dense": distance, "mixed": steps + distance}[self.reward_type]
         terms = {"goal": goal, "collision": -self.collision_penalty * cost}
         terminated = success | (np.asarray(cost) > 0) if self.terminate_on_collision else success
         return GoalOutcome(terms, terms["goal"] + terms["collision"], success, terminated)
@@ -163,6 +162,7 @@ class ScaraGoalEnv(_GoalAPI, ScaraEnv):
     |---|---|
     | sparse | -1 per step until the goal is reached, 0 on reaching it |
     | dense | -\\|\\|(q - q^) / (1 rad, 1 rad, 0.1 m)\\|\\| after the step |
+    | mixed | the sum of the two: the distance guides, the -1 per step pays for the last millimetre |
 
     collision term: -collision_penalty x ``info["cost"]`` (1 in a step in which the tip hit
     the wall). ``compute_reward(achieved_goal, desired_goal, info)`` gives the same over a
@@ -193,7 +193,7 @@ class ScaraGoalEnv(_GoalAPI, ScaraEnv):
 
     ## Arguments
 
-    - reward_type ("sparse"): "sparse" or "dense", see the reward.
+    - reward_type ("sparse"): "sparse", "dense" or "mixed", see the reward.
     - collision_penalty (50.0): the collision term's weight, in [0, 1e6]; with
       collision="terminate" a collision ends the episode, so the penalty must outweigh
       the sparse reward's steps it saves for a collision not to pay.
@@ -222,6 +222,7 @@ class ScaraGoalEnv(_GoalAPI, ScaraEnv):
 
     - v0: first release: the goal API on Scara-C11-v1's physics (``exact_switches=True``,
       ``rtol=1e-6``, ``atol=1e-8``) with goals drawn per episode (``randomize_target=True``).
+      Later added, without a change to what existing arguments do: ``reward_type="mixed"``.
     """
 
     env_id = "Scara-C11-Goal-v0"
@@ -341,11 +342,10 @@ class ScaraCudaGoalVectorEnv(_GoalAPI, ScaraCudaVectorEnv):
         torch = self._torch
         gap = clean_obs[:, Q].to(torch.float64) - targets.to(torch.float32).to(torch.float64)
         success = gap.abs().amax(dim=1) < self.rules.threshold
-        if self.rules.reward_type == "sparse":
-            goal = -(~success).to(torch.float64)
-        else:  # np.linalg.norm's sum: (x0^2 + x1^2) + x2^2
-            x = gap / self._scale
-            goal = -_sqrt(torch, (x[:, 0] * x[:, 0] + x[:, 1] * x[:, 1]) + x[:, 2] * x[:, 2])
+        steps = -(~success).to(torch.float64)
+        x = gap / self._scale  # np.linalg.norm's sum: (x0^2 + x1^2) + x2^2
+        distance = -_sqrt(torch, (x[:, 0] * x[:, 0] + x[:, 1] * x[:, 1]) + x[:, 2] * x[:, 2])
+        goal = {"sparse": steps, "dense": distance, "mixed": steps + distance}[self.rules.reward_type]
         collision = -self.rules.collision_penalty * info["cost"]
         zero = torch.zeros_like(goal)
         terms = {"goal": torch.where(stepped, goal, zero), "collision": torch.where(stepped, collision, zero)}

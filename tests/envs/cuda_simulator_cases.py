@@ -166,8 +166,10 @@ GOAL_CONFIGS = {
 }
 
 
-@pytest.mark.parametrize("autoreset_mode", ["NextStep", "SameStep"])
-@pytest.mark.parametrize("reward_type", ["sparse", "dense"])
+# "mixed" is the other two's terms summed: one autoreset mode checks its order of operations
+@pytest.mark.parametrize(("reward_type", "autoreset_mode"), [
+    (reward_type, mode) for reward_type in ("sparse", "dense") for mode in ("NextStep", "SameStep")] + [
+    ("mixed", "NextStep")])
 @pytest.mark.parametrize("name", GOAL_CONFIGS)
 def test_the_cuda_goal_env_is_the_cpu_goal_env_bit_for_bit(name, reward_type, autoreset_mode):
     """Scara-C11-Goal-v0 on the device: the goal test ends episodes in the step kernel; rewards,

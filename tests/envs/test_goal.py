@@ -40,7 +40,17 @@ def transitions(reward_type: str, count: int = 1000):
             np.array(terms), np.array(truncs), np.array(reached))
 
 
-@pytest.mark.parametrize("reward_type", ["sparse", "dense"])
+def test_the_mixed_reward_is_the_sparse_one_plus_the_dense_one():
+    achieved, desired, infos, rewards, *_ = transitions("mixed", count=400)
+    sparse, dense = (gym.make(GOAL, reward_type=kind, collision_penalty=0.0).unwrapped.compute_reward(
+        achieved, desired, infos) for kind in ("sparse", "dense"))
+    goal_terms = np.array([i["reward_terms"]["goal"] for i in infos])
+    np.testing.assert_array_equal(goal_terms, sparse + dense)
+    reached = np.array([i["is_success"] for i in infos])
+    assert reached.any() and (goal_terms[reached] > -1).all() and (goal_terms[~reached] <= -1).all()
+
+
+@pytest.mark.parametrize("reward_type", ["sparse", "dense", "mixed"])
 def test_compute_functions_over_a_batch_equal_the_steps(reward_type):
     env = gym.make(GOAL, reward_type=reward_type).unwrapped
     achieved, desired, infos, rewards, terminated, truncated, reached = transitions(reward_type)
@@ -155,7 +165,7 @@ def test_the_card_matches_the_spaces_and_arguments():
     assert list(documented) == list(parameters)
     for name, parameter in parameters.items():
         assert documented[name] == repr(parameter.default).replace("'", '"'), name
-    for reward_type in ("sparse", "dense"):
+    for reward_type in ("sparse", "dense", "mixed"):
         assert f"| {reward_type} |" in doc
     with pytest.raises(ValueError, match="reward_type must be one of 'sparse', 'dense'"):
         ScaraGoalEnv(reward_type="shaped")
