@@ -18,7 +18,8 @@ drawn per episode (``-random``), with physics and wall drawn per episode (``-dr`
 energy cost weighted (``-frugal``), with the time cost weighted 2.5x (``-fast``) or both
 (``-fast-frugal``), and for targets drawn per episode with collisions priced 3x (``-random-safe``),
 then fine-tuned from it with the time weighted 1.5x (``-random-safe-fast``), and ``-fast`` with most
-training episodes started on the optimal reference's path (``-fast-rsi``) (TORCH_PPO_VARIANTS).
+training episodes started on the optimal reference's path (``-fast-rsi``), and ``-random`` continued
+with episodes on the targets it recently failed (``-random-replay``) (TORCH_PPO_VARIANTS).
 ``--shard K/N`` takes every N-th run starting at the K-th, so that N processes can share the
 list (one per core); without it, workers started side by side share it too: each run is
 locked (``RUN/.lock``) by the process training it, and a worker passes over runs that are
@@ -83,9 +84,15 @@ TORCH_PPO_VARIANTS = {
     "torch-ppo-residual-fast-rsi": {**RESIDUAL, "reward_weights": "time=50,collision=100,success=50",
                                     "demo_resets": 0.8, "demo_wall_margin": 0.008, "ent_coef": 0.01,
                                     "total_timesteps": 4_000_000},
+    # -random fine-tuned for 1M steps with 30 % of the episodes on targets it recently failed
+    # (agents.torch_ppo.TargetReplay): its seeds 2 and 4 collided or stopped short at corners of the
+    # target range (high q1 with low q2; q1 near 1.5 rad)
+    "torch-ppo-residual-random-replay": {**RESIDUAL, "randomize_target": True, "reward_weights": ENGINEERED_WEIGHTS,
+                                         "target_replay": 0.3, "total_timesteps": 1_000_000},
 }
 """agents.torch_ppo's runs: the Config fields each changes from the defaults"""
-FINE_TUNES = {"torch-ppo-residual-random-safe-fast": "torch-ppo-residual-random-safe"}
+FINE_TUNES = {"torch-ppo-residual-random-safe-fast": "torch-ppo-residual-random-safe",
+              "torch-ppo-residual-random-replay": "torch-ppo-residual-random"}
 """variants that start from the same seed's finished run of another variant (Config.init_from),
 trained first where missing; their training time counts both (config.json's base_train_seconds)"""
 ALGOS = ("ppo", "sac", "td3", "ppo-residual", "ppo-residual-dr", "ppo-residual-frugal", *TORCH_PPO_VARIANTS)

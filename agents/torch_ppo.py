@@ -67,6 +67,7 @@ class Config:
     init_from: str = ""            # a finished run of this file to start from (its model.pt), e.g. to fine-tune
     demo_resets: float = 0.0       # share of training episodes that start on the optimal reference's path (DemoResets)
     demo_wall_margin: float = 1e-3 # m, the wall margin of that reference (a shipped solution of agents.optimal)
+    target_replay: float = 0.0     # share of training episodes given a target the agent recently failed (TargetReplay)
     out: str = "runs/torch_ppo"
 
     @property
@@ -311,6 +312,48 @@ class DemoResets:
         return obs
 
 
+class TargetReplay:
+    """Failed-target replay for targets drawn per episode (a plain form of prioritized level
+    replay, Jiang et al. 2021): the targets of training episodes that ended without success or
+    with a collision are kept (the newest ``capacity``), and each new episode gets one of them,
+    drawn uniformly, with probability ``config.target_replay`` instead of a fresh draw. A kept
+    target leaves once an episode on it succeeds without a collision. Rare corners of the
+    target range where the agent stops short or collides thus come back until it masters them;
+    training targets only, so the evaluation's targets never enter."""
+
+    def __init__(self, envs, config: Config, capacity: int = 256) -> None:
+        if not 0.0 <= config.target_replay <= 1.0:
+            raise ValueError(f"target_replay must be in [0, 1], got {config.target_replay!r}")
+        if not config.randomize_target or config.device != "cpu":
+            raise ValueError("target_replay: replays drawn targets; use it with randomize_target=True on the CPU env")
+        self.task = envs.unwrapped.task
+        self.probability, self.capacity = config.target_replay, capacity
+        self.rng = np.random.default_rng(config.seed)
+        self.failed: list[np.ndarray] = []
+        self.targets = self.task.robot_params["target"].copy()  # each robot's current episode's
+        self.replayed: list[np.ndarray | None] = [None] * len(self.targets)
+
+    def __call__(self, obs: np.ndarray, rows, success=None, collided=None) -> np.ndarray:
+        """Book the episodes of ``rows`` that just ended (success, collided: per robot; None at the
+        first reset), then give each of those robots' new episode a failed target where drawn."""
+        for i in rows:
+            i = int(i)
+            if success is not None:
+                solved = bool(success[i]) and not bool(collided[i])
+                if solved and self.replayed[i] is not None:
+                    self.failed = [t for t in self.failed if t is not self.replayed[i]]
+                elif not solved and self.replayed[i] is None:
+                    self.failed = (self.failed + [self.targets[i].copy()])[-self.capacity:]
+            self.replayed[i] = None
+            if self.failed and self.rng.random() < self.probability:
+                target = self.failed[self.rng.integers(len(self.failed))]
+                self.task.reset_robot(i, self.rng, {"target": target})
+                obs[i] = self.task.obs[i]
+                self.replayed[i] = target
+            self.targets[i] = self.task.robot_params["target"][i]
+        return obs
+
+
 def make_env(config: Config):
     weights = reward_weights(config.reward_weights)
     return gym.make_vec(config.env_id, num_envs=config.num_envs, vectorization_mode="vector_entry_point",
@@ -390,6 +433,7 @@ def train(config: Config, resume: bool = False) -> dict:
     demo_resets = DemoResets(envs, config) if config.demo_resets else None
     if demo_resets is not None:
         obs = demo_resets(obs, range(n))
+    target_replay = TargetReplay(envs, config) if config.target_replay else None
     obs = tensor(obs, device)
     done = torch.zeros(n, device=device)
     started = time.perf_counter()
@@ -433,6 +477,8 @@ def train(config: Config, resume: bool = False) -> dict:
                 discounted[rows] = 0.0
                 if demo_resets is not None:
                     next_obs = demo_resets(next_obs, rows.tolist())
+                if target_replay is not None:
+                    next_obs = target_replay(next_obs, rows.tolist(), info["is_success"], info["collisions"] > 0)
             obs, done = tensor(next_obs, device), ended.to(torch.float32)
 
         # -- advantages (GAE) ------------------------------------------------------------

@@ -113,7 +113,8 @@ def test_a_condition_without_a_shipped_optimal_solution_is_compared_without_it(m
 
 
 @pytest.mark.parametrize("algo", ["torch-ppo-dr", "torch-ppo-residual-random", "torch-ppo-residual-frugal",
-                                  "torch-ppo-residual-random-safe-fast", "torch-ppo-residual-fast-rsi"])
+                                  "torch-ppo-residual-random-safe-fast", "torch-ppo-residual-fast-rsi",
+                                  "torch-ppo-residual-random-replay"])
 def test_the_campaign_trains_the_single_file_ppo_once(tmp_path, algo):
     from agents import baselines
 

@@ -10,7 +10,8 @@ import torch
 import scara_gym  # noqa: F401
 from agents.evaluate import make_policy
 from agents.policies import run_episode
-from agents.torch_ppo import (Adam, Agent, Config, DemoResets, RunningMeanStd, main, make_env, ppo_gradients,
+from agents.torch_ppo import (Adam, Agent, Config, DemoResets, RunningMeanStd, TargetReplay, main, make_env,
+                              ppo_gradients,
                               ppo_loss, residual_mapping, reward_weights, train)
 
 
@@ -194,3 +195,39 @@ def test_demo_resets_start_episodes_on_the_reference_path_and_training_uses_them
     train(Config(num_envs=2, num_steps=8, num_minibatches=1, update_epochs=1, total_timesteps=32, demo_resets=0.5,
                  residual_scale="2.5,2.5,0.05", residual_deadzone=0.5, out=str(out)))
     assert json.loads((out / "config.json").read_text())["demo_resets"] == 0.5
+
+
+def test_target_replay_gives_new_episodes_the_failed_targets_until_they_succeed(tmp_path):
+    config = Config(num_envs=4, randomize_target=True, target_replay=1.0)
+    envs = make_env(config)
+    obs, _ = envs.reset(seed=0)
+    task = envs.unwrapped.task
+    targets = lambda: task.robot_params["target"].copy()  # noqa: E731
+    replay = TargetReplay(envs, config)
+    first = targets()
+    assert np.array_equal(replay(obs.copy(), range(4)), obs)  # nothing failed yet: the drawn targets stay
+    no, yes, rng = np.zeros(4, dtype=bool), np.ones(4, dtype=bool), np.random.default_rng(5)
+
+    def ended(rows, success, collided):  # what the autoreset does before the replay: fresh targets
+        for i in rows:
+            task.reset_robot(i, rng)
+        return replay(obs.copy(), rows, success, collided)
+
+    moved = ended([0], no, no)  # robot 0 stopped short on first[0]: its next episode is on it again
+    assert np.array_equal(targets()[0], first[0]) and len(replay.failed) == 1
+    assert np.array_equal(moved[0], task.obs[0].astype(np.float32))  # it sees its new episode
+    assert np.array_equal(moved[1:], obs[1:])
+    ended([0], yes, no)  # ... and succeeds there: the target leaves, the fresh draw stays
+    assert replay.failed == [] and not np.array_equal(targets()[0], first[0])
+    ended([1, 2], yes, yes)  # collisions count as failures
+    assert len(replay.failed) == 2 and np.array_equal(targets()[1], first[1])
+    ended([1], no, no)  # failing again on a replayed target keeps one entry of it
+    assert len(replay.failed) == 2
+    with pytest.raises(ValueError, match=r"target_replay must be in \[0, 1\]"):
+        TargetReplay(envs, Config(randomize_target=True, target_replay=2.0))
+    with pytest.raises(ValueError, match="randomize_target=True"):
+        TargetReplay(envs, Config(target_replay=0.5))
+    out = tmp_path / "replay"
+    train(Config(num_envs=2, num_steps=64, num_minibatches=1, update_epochs=1, total_timesteps=256,
+                 randomize_target=True, target_replay=0.5, out=str(out)))
+    assert json.loads((out / "config.json").read_text())["target_replay"] == 0.5
