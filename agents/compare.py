@@ -263,7 +263,7 @@ def compare(runs_root: Path | None = Path("runs/baselines"), conditions: list[st
             traces[name][label] = runs[0]["trace"]
             if verbose:
                 e = entries[-1]
-                print(f"[{name}] {label}: success {e['success_rate']:.2f}, collisions {e['collision_rate']:.2f}, "
+                print(f"[{name}] {label}: success {_rate(e['success_rate'])}, collisions {_rate(e['collision_rate'])}, "
                       f"time IQM {e['time_iqm']:.4f} s {e['time_ci']}, energy {e['energy_mean']:.1f} J", flush=True)
 
         reference = None  # the heuristic learned agents are compared with: dec-continue, smallest safe distance
@@ -330,6 +330,13 @@ DOMAIN_RANDOMIZED_SUFFIX = "-dr"  # agents.baselines' algorithms trained with ph
 TRAINING_BUDGET = 1800.0  # [s] per training run on 2 CPU cores
 
 
+def _rate(rate: float) -> str:
+    """A success or collision rate with two decimals, or three where two would round it to
+    another value (0.998 is not 1.00: 1 collision in 500 episodes must show)."""
+    text = f"{rate:.2f}"
+    return text if float(text) == rate else f"{rate:.3f}"
+
+
 def _find(entries, condition, kind=None, algorithm=None):
     return [e for e in entries if e["condition"] == condition and (kind is None or e["kind"] == kind)
             and (algorithm is None or e["algorithm"] == algorithm)]
@@ -355,7 +362,7 @@ def target_checks(entries: list[dict]) -> list[dict]:
         checks.append({"target": target, "met": met, "reached": reached})
 
     def summary(e):
-        return (f"{e['name']}: success {e['success_rate']:.2f}, collisions {e['collision_rate']:.2f}, "
+        return (f"{e['name']}: success {_rate(e['success_rate'])}, collisions {_rate(e['collision_rate'])}, "
                 f"time IQM {e['time_iqm']:.4f} s, energy {e['energy_mean']:.1f} J")
 
     optimal = _find(entries, "c11", "optimal")
@@ -400,7 +407,7 @@ def target_checks(entries: list[dict]) -> list[dict]:
         best = max(robust, key=lambda a: (robust_enough(robust[a]),
                                           min(e["success_rate"] - e["collision_rate"] for e in robust[a])))
         check(text, robust_enough(robust[best]), f"{best}: " + "; ".join(
-            f"{e['condition']} {e['success_rate']:.2f} / {e['collision_rate']:.2f}" for e in robust[best]))
+            f"{e['condition']} {_rate(e['success_rate'])} / {_rate(e['collision_rate'])}" for e in robust[best]))
     else:
         check(text, None, f"no domain-randomized agent (*{DOMAIN_RANDOMIZED_SUFFIX}) evaluated in all four shifts")
     text = "fast and frugal: a learned algorithm faster (IQM) than the heuristic on the C11 target with at most its energy"
@@ -450,7 +457,7 @@ def overview(entries: list[dict]) -> str:
             e = found[0]
             time_text = "-" if e["success_rate"] == 0 else f"{e['time_iqm']:.3f} s"
             clean = e["success_rate"] == 1.0 and e["collision_rate"] == 0.0
-            cells.append(time_text if clean else f"{time_text} ({e['success_rate']:.2f} / {e['collision_rate']:.2f})")
+            cells.append(time_text if clean else f"{time_text} ({_rate(e['success_rate'])} / {_rate(e['collision_rate'])})")
         lines.append(f"| {name} | " + " | ".join(cells) + " |")
     return "\n".join(lines) + "\n"
 
@@ -467,13 +474,13 @@ def condition_tables(entries: list[dict]) -> str:
             p = e.get("probability_faster_than_heuristic")
             p_text = "-" if p is None else f"{p:.2f} [{e['probability_faster_ci'][0]:.2f}, {e['probability_faster_ci'][1]:.2f}]"
             lines.append(f"| {e['name']} | {e['kind']} | {e['control_mode']} | {seeds} | {e['episodes']} | "
-                         f"{e['success_rate']:.2f} | {e['collision_rate']:.2f} | {e['time_iqm']:.4f} "
+                         f"{_rate(e['success_rate'])} | {_rate(e['collision_rate'])} | {e['time_iqm']:.4f} "
                          f"[{e['time_ci'][0]:.4f}, {e['time_ci'][1]:.4f}] | {e['energy_mean']:.1f} | {p_text} |")
         per_seed = [e for e in entries if e["condition"] == name and e.get("per_seed")]
         if per_seed:
             lines += ["", "Every seed (success, collisions, mean time of the successful episodes, energy):", ""]
             for e in per_seed:
-                cells = [f"seed {s['seed']}: {s['success_rate']:.2f} / {s['collision_rate']:.2f} / "
+                cells = [f"seed {s['seed']}: {_rate(s['success_rate'])} / {_rate(s['collision_rate'])} / "
                          + ("-" if s["time_mean"] is None else f"{s['time_mean']:.4f} s") + f" / {s['energy_mean']:.0f} J"
                          for s in e["per_seed"]]
                 lines.append(f"- {e['name']}: " + "; ".join(cells))

@@ -217,3 +217,8 @@ def test_a_fine_tuned_variant_starts_from_its_base_run_and_counts_its_training_t
     assert config["base_train_seconds"] == base_config["train_seconds"] > 0
     assert compare.training_seconds(config) == config["train_seconds"] + base_config["train_seconds"]
     assert compare.training_seconds(base_config) == base_config["train_seconds"]
+
+
+def test_rates_keep_two_decimals_unless_that_hides_an_episode():
+    assert [compare._rate(r) for r in (1.0, 0.0, 0.57, 0.998, 0.002, 2 / 3)] == \
+        ["1.00", "0.00", "0.57", "0.998", "0.002", "0.667"]
