@@ -162,7 +162,7 @@ class ScaraGoalEnv(_GoalAPI, ScaraEnv):
     |---|---|
     | sparse | -1 per step until the goal is reached, 0 on reaching it |
     | dense | -\\|\\|(q - q^) / (1 rad, 1 rad, 0.1 m)\\|\\| after the step |
-    | mixed | the sum of the two: the distance guides, the -1 per step pays for the last millimetre |
+    | mixed | the sum of the two (sparse + dense) |
 
     collision term: -collision_penalty x ``info["cost"]`` (1 in a step in which the tip hit
     the wall). ``compute_reward(achieved_goal, desired_goal, info)`` gives the same over a
