@@ -333,17 +333,16 @@ class TargetReplay:
         self.targets = self.task.robot_params["target"].copy()  # each robot's current episode's
         self.replayed: list[np.ndarray | None] = [None] * len(self.targets)
 
-    def __call__(self, obs: np.ndarray, rows, success=None, collided=None) -> np.ndarray:
-        """Book the episodes of ``rows`` that just ended (success, collided: per robot; None at the
-        first reset), then give each of those robots' new episode a failed target where drawn."""
+    def __call__(self, obs: np.ndarray, rows, success, collided) -> np.ndarray:
+        """Book the episodes of ``rows`` that just ended (success, collided: per robot), then give
+        each of those robots' new episode a failed target where drawn."""
         for i in rows:
             i = int(i)
-            if success is not None:
-                solved = bool(success[i]) and not bool(collided[i])
-                if solved and self.replayed[i] is not None:
-                    self.failed = [t for t in self.failed if t is not self.replayed[i]]
-                elif not solved and self.replayed[i] is None:
-                    self.failed = (self.failed + [self.targets[i].copy()])[-self.capacity:]
+            solved = bool(success[i]) and not bool(collided[i])
+            if solved and self.replayed[i] is not None:
+                self.failed = [t for t in self.failed if t is not self.replayed[i]]
+            elif not solved and self.replayed[i] is None:
+                self.failed = (self.failed + [self.targets[i].copy()])[-self.capacity:]
             self.replayed[i] = None
             if self.failed and self.rng.random() < self.probability:
                 target = self.failed[self.rng.integers(len(self.failed))]

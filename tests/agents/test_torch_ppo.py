@@ -205,8 +205,8 @@ def test_target_replay_gives_new_episodes_the_failed_targets_until_they_succeed(
     targets = lambda: task.robot_params["target"].copy()  # noqa: E731
     replay = TargetReplay(envs, config)
     first = targets()
-    assert np.array_equal(replay(obs.copy(), range(4)), obs)  # nothing failed yet: the drawn targets stay
     no, yes, rng = np.zeros(4, dtype=bool), np.ones(4, dtype=bool), np.random.default_rng(5)
+    assert np.array_equal(replay(obs.copy(), range(4), yes, no), obs)  # nothing failed yet: the targets stay
 
     def ended(rows, success, collided):  # what the autoreset does before the replay: fresh targets
         for i in rows:
