@@ -19,7 +19,8 @@ energy cost weighted (``-frugal``), with the time cost weighted 2.5x (``-fast``)
 (``-fast-frugal``), and for targets drawn per episode with collisions priced 3x (``-random-safe``),
 then fine-tuned from it with the time weighted 1.5x (``-random-safe-fast``), and ``-fast`` with most
 training episodes started on the optimal reference's path (``-fast-rsi``), and ``-random`` continued
-with episodes on the targets it recently failed (``-random-replay``) (TORCH_PPO_VARIANTS).
+with episodes on the targets it recently failed (``-random-replay``), and ``-fast-frugal``'s reward
+trained behind agents.shield's shield (``-fast-shield``) (TORCH_PPO_VARIANTS).
 ``--shard K/N`` takes every N-th run starting at the K-th, so that N processes can share the
 list (one per core); without it, workers started side by side share it too: each run is
 locked (``RUN/.lock``) by the process training it, and a worker passes over runs that are
@@ -89,6 +90,11 @@ TORCH_PPO_VARIANTS = {
     # target range (high q1 with low q2; q1 near 1.5 rad)
     "torch-ppo-residual-random-replay": {**RESIDUAL, "randomize_target": True, "reward_weights": ENGINEERED_WEIGHTS,
                                          "target_replay": 0.3, "total_timesteps": 1_000_000},
+    # -fast-frugal's reward behind agents.shield's model-predictive shield (nominal model), in
+    # training and evaluation: the agent starts as PD behind the shield, which alone reaches
+    # the C11 target in 1.469 s with 56.5 J
+    "torch-ppo-residual-fast-shield": {**RESIDUAL, "reward_weights": "time=50,collision=100,success=50,energy=0.03",
+                                       "shield": True, "total_timesteps": 1_000_000},
 }
 """agents.torch_ppo's runs: the Config fields each changes from the defaults"""
 FINE_TUNES = {"torch-ppo-residual-random-safe-fast": "torch-ppo-residual-random-safe",

@@ -205,27 +205,31 @@ POLICY_FILES = ("config.json", "model.zip", "model.pt", "vecnormalize.pkl")
 """the files of a finished run that its policy's actions depend on"""
 
 
-def evaluation_key(run_dir: Path, condition: Condition, mode: str, episodes: int, seed: int) -> str:
+def evaluation_key(run_dir: Path, condition: Condition, mode: str, episodes: int, seed: int,
+                   shield: bool = False) -> str:
     """What a learned run's evaluation depends on: its policy's files, the condition (and the
-    environment it builds), the episodes and the package version."""
+    environment it builds), the episodes, the package version and whether a shield acts."""
     digest = hashlib.sha256()
     for name in POLICY_FILES:
         if (Path(run_dir) / name).exists():
             digest.update(name.encode() + (Path(run_dir) / name).read_bytes())
+    if shield:
+        digest.update(b"agents.shield.Shield, defaults")
     digest.update(json.dumps([dataclasses.asdict(condition), mode, episodes, seed, TRAINING_ENV_ID, __version__],
                              sort_keys=True).encode())
     return digest.hexdigest()[:32]
 
 
 def learned_episodes(env, run_dir: Path, condition: Condition, mode: str, episodes: int, seed: int,
-                     identical: bool, cache: Path | None = None) -> dict:
-    """episodes_of a finished run's policy, from ``cache`` where it holds them (else kept there)."""
+                     identical: bool, cache: Path | None = None, shield: bool = False) -> dict:
+    """episodes_of a finished run's policy (behind agents.shield's Shield with ``shield``),
+    from ``cache`` where it holds them (else kept there)."""
     if cache is None:
-        return episodes_of(env, learned_policy(env, run_dir), episodes, seed, identical)
-    path = Path(cache) / f"{evaluation_key(run_dir, condition, mode, episodes, seed)}.pkl"
+        return episodes_of(env, learned_policy(env, run_dir, shield), episodes, seed, identical)
+    path = Path(cache) / f"{evaluation_key(run_dir, condition, mode, episodes, seed, shield)}.pkl"
     if path.exists():
         return pickle.loads(path.read_bytes())
-    result = episodes_of(env, learned_policy(env, run_dir), episodes, seed, identical)
+    result = episodes_of(env, learned_policy(env, run_dir, shield), episodes, seed, identical)
     path.parent.mkdir(parents=True, exist_ok=True)
     partial = path.with_suffix(".partial")
     partial.write_bytes(pickle.dumps(result))
@@ -233,23 +237,37 @@ def learned_episodes(env, run_dir: Path, condition: Condition, mode: str, episod
     return result
 
 
-def learned_policy(env, run_dir: Path):
-    """The policy of a finished run: SB3's (model.zip) or agents.torch_ppo's (model.pt)."""
+def learned_policy(env, run_dir: Path, shield: bool = False):
+    """The policy of a finished run: SB3's (model.zip) or agents.torch_ppo's (model.pt); with
+    ``shield``, behind agents.shield's Shield (its model has the nominal parameters)."""
     if (run_dir / "model.zip").exists():
         from agents.training import SB3Policy
-        return SB3Policy(env, run_dir)
-    from agents.torch_ppo import TorchPPOPolicy
-    return TorchPPOPolicy(env, run_dir)
+        policy = SB3Policy(env, run_dir)
+    else:
+        from agents.torch_ppo import TorchPPOPolicy
+        policy = TorchPPOPolicy(env, run_dir)
+    if shield:
+        from agents.shield import Shield
+        return Shield(env, policy)
+    return policy
+
+
+SHIELDED = ("torch-ppo-residual-random-replay",)
+"""learned algorithms the comparison also runs behind agents.shield's Shield (``--shield``)"""
+SHIELD_SUFFIX = " + shield"
 
 
 def compare(runs_root: Path | None = Path("runs/baselines"), conditions: list[str] = ("c11",),
             episodes: int = 100, seed: int = 1000, include_optimal: bool = True, verbose: bool = True,
-            bisection_tolerance: float = 5e-4, cache: Path | None = None):
+            bisection_tolerance: float = 5e-4, cache: Path | None = None, shielded: tuple[str, ...] = SHIELDED):
     """Every policy in every condition: (entries, traces per condition). Every policy here is
     deterministic, so in a condition without draws (fixed target and parameters) its episodes
     are one episode repeated: episodes_of runs two and checks that. cache: a folder that keeps
-    learned runs' evaluations (learned_episodes)."""
+    learned runs' evaluations (learned_episodes). shielded: learned algorithms that also run
+    behind agents.shield's Shield (entries "ALGO + shield"), as PD does ("pd + shield") where
+    any is given."""
     from agents.optimal import OptimalPolicy
+    from agents.shield import Shield
 
     entries, traces = [], {}
     groups = learned_runs(runs_root) if runs_root is not None else {}
@@ -270,6 +288,9 @@ def compare(runs_root: Path | None = Path("runs/baselines"), conditions: list[st
         env = make_env(condition, "pd")
         same = not condition.randomize_target  # every episode alike (see episodes_of)
         add("pd", "pd", None, "pd", [episodes_of(env, PDPolicy(env), episodes, seed, same)], None)
+        if shielded:
+            add("pd" + SHIELD_SUFFIX, "pd", None, "pd", [episodes_of(env, Shield(env, PDPolicy(env)), episodes, seed, same)],
+                None, note="agents.shield's Shield with the nominal parameters")
         for variant in ("continue", "restart"):
             try:  # the bisection runs episode 0 of the evaluation seeds
                 smallest, _ = smallest_safe_distance(variant, tolerance=bisection_tolerance, env=env, seed=seed)
@@ -294,14 +315,18 @@ def compare(runs_root: Path | None = Path("runs/baselines"), conditions: list[st
                     note="minimum-time voltages held over the control steps (agents.optimal)")
         for (algorithm, mode), run_dirs in sorted(groups.items()):
             env = make_env(condition, mode)
-            runs = [learned_episodes(env, d, condition, mode, episodes, seed, same, cache) for d in run_dirs]
             configs = [json.loads((d / "config.json").read_text()) for d in run_dirs]
-            add(algorithm, "learned", algorithm, mode, runs, [c["seed"] for c in configs],
-                train_seconds=[training_seconds(c) for c in configs])
-            if reference is not None:
-                p, ci = probability_faster(time_scores(runs), time_scores(reference))
-                entries[-1]["probability_faster_than_heuristic"] = p
-                entries[-1]["probability_faster_ci"] = ci
+            for shield in (False, True) if algorithm in shielded else (False,):
+                runs = [learned_episodes(env, d, condition, mode, episodes, seed, same, cache, shield)
+                        for d in run_dirs]
+                label = algorithm + (SHIELD_SUFFIX if shield else "")
+                add(label, "learned", label, mode, runs, [c["seed"] for c in configs],
+                    note="agents.shield's Shield with the nominal parameters" if shield else "",
+                    train_seconds=[training_seconds(c) for c in configs])
+                if reference is not None:
+                    p, ci = probability_faster(time_scores(runs), time_scores(reference))
+                    entries[-1]["probability_faster_than_heuristic"] = p
+                    entries[-1]["probability_faster_ci"] = ci
         if verbose:
             print(f"[{name}] {time.perf_counter() - started:.0f} s", flush=True)
     return entries, traces
@@ -420,7 +445,8 @@ def target_checks(entries: list[dict]) -> list[dict]:
               + f"; heuristic {h['time_iqm']:.4f} s, {h['energy_mean']:.1f} J")
     else:
         check(text, None, "not evaluated")
-    seconds = {e["algorithm"]: [s.get("train_seconds") for s in e["per_seed"]] for e in learned}
+    seconds = {e["algorithm"]: [s.get("train_seconds") for s in e["per_seed"]] for e in learned
+               if not e["algorithm"].endswith(SHIELD_SUFFIX)}  # a shielded entry's runs are listed unshielded
     text = f"each training run <= {TRAINING_BUDGET / 60:.0f} min on 2 CPU cores"
     if seconds:
         longest = {a: max(v for v in values if v is not None) for a, values in seconds.items()
@@ -554,6 +580,8 @@ def main(argv: list[str] | None = None) -> list[dict]:
     parser.add_argument("--no-optimal", action="store_true", help="leave out the optimal reference")
     parser.add_argument("--out", type=Path, default=Path("docs/results"))
     parser.add_argument("--jobs", type=int, default=1, help="processes evaluating conditions side by side")
+    parser.add_argument("--shield", nargs="*", default=list(SHIELDED), metavar="ALGO",
+                        help="learned algorithms to run behind agents.shield's Shield as well (none: --shield)")
     parser.add_argument("--cache", type=Path, default=None, metavar="DIR",
                         help="keep learned runs' evaluations in DIR and reuse them (e.g. runs/compare-cache)")
     args = parser.parse_args(argv)
@@ -562,7 +590,8 @@ def main(argv: list[str] | None = None) -> list[dict]:
     if args.jobs < 1:
         parser.error(f"--jobs must be >= 1, got {args.jobs}")
     entries, traces = compare_in_parallel(args.runs, args.conditions, args.jobs, episodes=args.episodes,
-                                          seed=args.seed, include_optimal=not args.no_optimal, cache=args.cache)
+                                          seed=args.seed, include_optimal=not args.no_optimal, cache=args.cache,
+                                          shielded=tuple(args.shield))
     args.out.mkdir(parents=True, exist_ok=True)
     command = "python -m agents.compare " + " ".join(argv if argv is not None else __import__("sys").argv[1:])
     (args.out / "comparison.json").write_text(json.dumps({"env_id": TRAINING_ENV_ID, "command": command,

@@ -7,7 +7,8 @@ Policy specs: ``pd``; ``dec-continue[:d]`` and ``dec-restart[:d]`` (the seed's h
 with trigger distance d [m]); ``ppo:NAME`` (a shipped model, e.g. ``ppo_pd``) or
 ``ppo:DIR`` (a model saved by agents.train); ``sb3:DIR`` (any run of agents.training:
 PPO, SAC, TD3); ``torchppo:DIR`` (a run of agents.torch_ppo); ``optimal`` (the minimum-time reference of agents.optimal, "voltage" mode,
-best on ``--env-id Scara-C11-v1``, the physics it was verified on). Writes, under ``--out`` only: ``table.md``,
+best on ``--env-id Scara-C11-v1``, the physics it was verified on); ``shield:SPEC`` (the policy of SPEC behind
+agents.shield's model-predictive shield, e.g. ``shield:pd``). Writes, under ``--out`` only: ``table.md``,
 ``table.csv``, ``tip_paths.png``, ``wall_and_height.png``, ``NAME_results.json`` for each
 PPO model (the format of a shipped model's ``results.json``) and, for PPO models with
 evaluation logs, ``learning_curves.png``.
@@ -32,6 +33,11 @@ COLUMNS = ("policy", "episodes", "success rate", "collision rate", "mean time to
 
 def make_policy(spec: str, env):
     kind, _, arg = spec.partition(":")
+    if kind == "shield":
+        from agents.shield import Shield
+        if not arg:
+            raise ValueError("shielded policies are given as shield:SPEC, e.g. shield:pd or shield:torchppo:RUN_DIR")
+        return Shield(env, make_policy(arg, env))
     if kind == "pd":
         return PDPolicy(env)
     if kind in ("dec-continue", "dec-restart"):
@@ -56,7 +62,7 @@ def make_policy(spec: str, env):
         from agents.optimal import OptimalPolicy
         return OptimalPolicy(env)
     raise ValueError(f"unknown policy {spec!r}; use pd, dec-continue[:d], dec-restart[:d], optimal, "
-                     "ppo:NAME_OR_DIR, sb3:RUN_DIR or torchppo:RUN_DIR")
+                     "ppo:NAME_OR_DIR, sb3:RUN_DIR, torchppo:RUN_DIR or shield:SPEC")
 
 
 def evaluate(policies: list[str], control_mode: str = "pd", randomize_target: bool = False,

@@ -491,6 +491,35 @@ def reference_snapshots(env_id: str = "Scara-C11-v1", start=(0.0, 0.0, 0.0), tar
     return snapshots
 
 
+def reference_demonstration(env_id: str = "Scara-C11-v1", start=(0.0, 0.0, 0.0), target=(2.0, 2.0, 0.3),
+                            params: ScaraParams = DEFAULT_PARAMS,
+                            wall_margin: float = CollocationConfig.wall_margin) -> tuple[np.ndarray, np.ndarray]:
+    """(observations, actions) of the optimal reference's replay in the environment ("voltage"
+    mode): the observation before each of its control steps and the held action it takes
+    there, as float64 arrays (steps, 18) and (steps, 3). Demonstrations for behaviour cloning
+    (agents.torch_ppo's ``demo_bc``). Raises if the replay does not reach the target."""
+    data = cached_solution(start, target, params, wall_margin)
+    if data is None:
+        raise LookupError(f"no shipped minimum-time solution from {list(start)} to {list(target)} with wall margin "
+                          f"{wall_margin} m (python -m agents.optimal --wall-margin M --write FILE makes one)")
+    env, policy = replaying(np.array(data["held"]["actions"]), env_id, start, target, params)
+    obs, _ = env.reset(seed=0)
+    policy.reset()
+    observations, actions = [], []
+    while True:
+        action = policy(obs)
+        observations.append(np.asarray(obs, dtype=np.float64))
+        actions.append(np.asarray(action, dtype=np.float64))
+        obs, _, terminated, truncated, info = env.step(action)
+        if terminated or truncated:
+            break
+    env.close()
+    if not info["is_success"] or info["collisions"]:
+        raise RuntimeError(f"the optimal reference from {list(start)} to {list(target)} does not reach the "
+                           f"target without a collision in {env_id}")
+    return np.array(observations), np.array(actions)
+
+
 def main(argv: list[str] | None = None) -> dict:
     parser = argparse.ArgumentParser(prog="python -m agents.optimal", description=__doc__.split("\n\n")[0])
     parser.add_argument("--start", nargs=3, type=float, default=list(DEFAULT_PARAMS.task.start))

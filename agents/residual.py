@@ -15,6 +15,7 @@ import numpy as np
 from scara_gym.envs import OBSERVATION_LAYOUT, ScaraTask
 
 Q, TARGET_ERROR = OBSERVATION_LAYOUT["q"], OBSERVATION_LAYOUT["target_error"]
+RATES, CRITICAL = OBSERVATION_LAYOUT["rate"], OBSERVATION_LAYOUT["critical"]
 
 
 class ResidualSetpoint:
@@ -39,3 +40,24 @@ class ResidualSetpoint:
         if self.task.control_mode == "pd":
             return np.clip((setpoint - self.task.setpoint_center) / self.task.setpoint_half, -1.0, 1.0)
         return self.task.pd_action(obs, setpoint)
+
+    def agent_actions(self, obs: np.ndarray, env_actions: np.ndarray, saturation_margin: float = 0.2) -> np.ndarray:
+        """Outputs r in [-1, 1] that this map turns into (about) the given environment actions on
+        raw observations: demonstrations in the agent's own action space. In "voltage" mode the
+        set-point is the one for which the held PD law gives the voltage (a saturated voltage,
+        |action| >= 0.999, asks ``saturation_margin`` more, so that it stays saturated); r is
+        clipped where the set-point lies beyond target +- residual_scale."""
+        obs = np.atleast_2d(np.asarray(obs, dtype=float))
+        env_actions = np.atleast_2d(np.asarray(env_actions, dtype=float))
+        target = obs[:, Q] + obs[:, TARGET_ERROR]
+        if self.task.control_mode == "pd":
+            setpoint = self.task.setpoint_center + self.task.setpoint_half * env_actions
+        else:
+            p = self.task.robot_params[0]
+            limit = np.where(obs[:, CRITICAL, None] > 0.5, p["wide_voltage_limit"], p["voltage_limit"])
+            boost = np.where(np.abs(env_actions) >= 0.999, 1.0 + saturation_margin, 1.0)
+            setpoint = obs[:, Q] + (env_actions * boost * limit + p["d_gain"] * obs[:, RATES]) / p["p_gain"]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            shaped = np.where(self.scale > 0, (setpoint - target) / self.scale, 0.0)
+        r = np.sign(shaped) * (self.deadzone + (1.0 - self.deadzone) * np.abs(shaped))
+        return np.clip(np.where(shaped == 0.0, 0.0, r), -1.0, 1.0)

@@ -11,6 +11,9 @@ than the arithmetic, and tests hold both to torch's), the rollout and the update
     python -m agents.torch_ppo --device cuda --num-envs 4096 --num-steps 32 --out runs/torch_ppo_gpu
     python -m agents.evaluate --policies torchppo:runs/torch_ppo --env-id Scara-C11-v1
 
+``--shield`` trains and evaluates the agent behind agents.shield's model-predictive shield
+(shielded RL: the environment applies the shield's action, the agent's own is stored; CPU).
+
 A run folder holds ``config.json``, ``model.pt`` (the policy and its observation normalizer,
 what ``TorchPPOPolicy`` loads), ``checkpoint.pt`` (everything to resume: ``--resume``) and
 TensorBoard logs under ``tb/``.
@@ -68,6 +71,11 @@ class Config:
     demo_resets: float = 0.0       # share of training episodes that start on the optimal reference's path (DemoResets)
     demo_wall_margin: float = 1e-3 # m, the wall margin of that reference (a shipped solution of agents.optimal)
     target_replay: float = 0.0     # share of training episodes given a target the agent recently failed (TargetReplay)
+    shield: bool = False           # act behind agents.shield's Shield, in training and evaluation (shielded RL)
+    demo_bc: float = 0.0           # weight of the behaviour-cloning term on the optimal reference's steps (DemoCloning)
+    demo_bc_decay: float = 1.0     # that weight's factor per update (DAPG's decay)
+    demo_bc_pretrain: int = 0      # Adam steps on the cloning term alone before the first rollout
+    init_log_std: float = 0.0      # the policy's initial log standard deviation
     out: str = "runs/torch_ppo"
 
     @property
@@ -312,6 +320,64 @@ class DemoResets:
         return obs
 
 
+class DemoCloning:
+    """Demonstration-augmented policy gradient (DAPG, Rajeswaran et al. 2018): the optimal
+    reference's steps on the C11 target (agents.optimal.reference_demonstration, the reference
+    with ``demo_wall_margin``), turned into the agent's own outputs by the residual set-point's
+    inverse (ResidualSetpoint.agent_actions), give a behaviour-cloning term
+    ``weight * mean ||mean action - demo action||^2`` added to PPO's loss, its weight
+    ``demo_bc * demo_bc_decay ** (update - 1)``; ``demo_bc_pretrain`` Adam steps on it alone
+    start the policy there (its observation normalizer from the demonstration's states). The
+    agent learns from the reward where the reference's path does not reach: the band it leaves
+    by a hair, the states a policy that is not exact visits."""
+
+    def __init__(self, envs, config: Config, mapping) -> None:
+        if config.demo_bc < 0 or not 0.0 < config.demo_bc_decay <= 1.0 or config.demo_bc_pretrain < 0:
+            raise ValueError(f"demo_bc must be >= 0, demo_bc_decay in (0, 1], demo_bc_pretrain >= 0; got "
+                             f"{config.demo_bc!r}, {config.demo_bc_decay!r}, {config.demo_bc_pretrain!r}")
+        if (mapping is None or config.control_mode != "voltage" or config.randomize_target or config.randomize_params
+                or config.device != "cpu"):
+            raise ValueError("demo_bc: the demonstration is the C11 target's voltages with the nominal parameters, "
+                             "in the residual set-point's outputs; use it with control_mode='voltage' and "
+                             "residual_scale, without randomize_target and randomize_params, on the CPU")
+        from agents.optimal import reference_demonstration
+
+        task = envs.unwrapped.task
+        observations, actions = reference_demonstration(config.env_id, params=task.params,
+                                                        wall_margin=config.demo_wall_margin)
+        self.obs = torch.as_tensor(observations.astype(np.float32))
+        self.actions = torch.as_tensor(mapping.agent_actions(observations, actions), dtype=torch.float32)
+        self.config = config
+
+    def weight(self, update: int) -> float:
+        return self.config.demo_bc * self.config.demo_bc_decay ** (update - 1)
+
+    def gradients(self, agent: Agent, weight: float) -> dict:
+        """{parameter name: gradient} of the cloning term at ``weight`` (autograd: one small batch)."""
+        with torch.enable_grad():
+            mean = agent.heads(agent.normalize(self.obs))[0]
+            loss = weight * ((mean - self.actions) ** 2).sum(-1).mean()
+            names, parameters = zip(*agent.named_parameters())
+            grads = torch.autograd.grad(loss, parameters, allow_unused=True)
+        return {name: torch.zeros_like(p) if g is None else g for name, p, g in zip(names, parameters, grads)}
+
+    def pretrain(self, agent: Agent, steps: int, learning_rate: float) -> float:
+        """``steps`` Adam steps on the cloning term alone (weight 1), the observation normalizer
+        set to the demonstration's states first; returns the last loss."""
+        agent.obs_rms.mean.copy_(self.obs.double().mean(0))
+        agent.obs_rms.var.copy_(self.obs.double().var(0) + 1e-4)
+        agent.obs_rms.count.fill_(len(self.obs))
+        optimizer = torch.optim.Adam(agent.parameters(), lr=learning_rate)
+        loss = torch.tensor(float("nan"))
+        for _ in range(steps):
+            mean = agent.heads(agent.normalize(self.obs))[0]
+            loss = ((mean - self.actions) ** 2).sum(-1).mean()
+            optimizer.zero_grad()
+            loss.backward()
+            optimizer.step()
+        return float(loss.detach())
+
+
 class TargetReplay:
     """Failed-target replay for targets drawn per episode (a plain form of prioritized level
     replay, Jiang et al. 2021): the targets of training episodes that ended without success or
@@ -351,6 +417,19 @@ class TargetReplay:
                 self.replayed[i] = target
             self.targets[i] = self.task.robot_params["target"][i]
         return obs
+
+
+def make_shield(config: Config):
+    """agents.shield's Shield for the robots of this run's environment (model: the nominal
+    parameters), or None. In training the agent's own action is stored and the shielded one
+    is applied, the shield being part of the environment as the agent sees it."""
+    if not config.shield:
+        return None
+    if config.device != "cpu":
+        raise ValueError("shield: the shield's model runs on the CPU; train with device='cpu'")
+    from agents.shield import Shield
+
+    return Shield(gym.make(config.env_id, control_mode=config.control_mode), None)
 
 
 def make_env(config: Config):
@@ -401,6 +480,13 @@ def train(config: Config, resume: bool = False) -> dict:
         start_update, global_step, train_seconds = state["update"] + 1, state["global_step"], state["train_seconds"]
     elif config.init_from:
         load_weights(agent, Path(config.init_from))
+    cloning = DemoCloning(envs, config, mapping) if (config.demo_bc or config.demo_bc_pretrain) else None
+    if start_update == 1 and not config.init_from:
+        with torch.no_grad():
+            agent.actor_logstd.fill_(config.init_log_std)
+        if cloning is not None and config.demo_bc_pretrain:
+            print(f"behaviour cloning: loss {cloning.pretrain(agent, config.demo_bc_pretrain, 1e-3):.2e} after "
+                  f"{config.demo_bc_pretrain} steps", flush=True)
     (out / "config.json").write_text(json.dumps(dataclasses.asdict(config), indent=2))
     writer = SummaryWriter(str(out / "tb"))
 
@@ -410,6 +496,9 @@ def train(config: Config, resume: bool = False) -> dict:
         operations, and autograd's graph and the bookkeeping of clip_grad_norm_ and torch.optim
         cost more than the arithmetic."""
         by_name, stats = ppo_gradients_(agent, obs, actions, old_logprobs, advantages, returns, config, with_stats)
+        if cloning_weight:
+            cloned = cloning.gradients(agent, cloning_weight)
+            by_name = {name: by_name[name] + cloned[name] for name in names}
         grad = torch.cat([by_name[name].reshape(-1) for name in names])  # laid out as flat
         grad *= (config.max_grad_norm / (grad.norm() + 1e-6)).clamp(max=1.0)  # clip_grad_norm_'s rule
         optimizer.step([grad])
@@ -433,12 +522,15 @@ def train(config: Config, resume: bool = False) -> dict:
     if demo_resets is not None:
         obs = demo_resets(obs, range(n))
     target_replay = TargetReplay(envs, config) if config.target_replay else None
+    shield = make_shield(config)
+    interventions = 0
     obs = tensor(obs, device)
     done = torch.zeros(n, device=device)
     started = time.perf_counter()
     for update in range(start_update, num_updates + 1):
         if config.anneal_lr:
             optimizer.lr = config.learning_rate * (1.0 - (update - 1.0) / num_updates)
+        cloning_weight = cloning.weight(update) if cloning is not None else 0.0
         # -- rollout ---------------------------------------------------------------------
         for step in range(steps):
             global_step += n
@@ -451,6 +543,11 @@ def train(config: Config, resume: bool = False) -> dict:
             env_action = clipped if config.device == "cuda" else clipped.numpy()
             if mapping is not None:  # the agent's r becomes a set-point around the target
                 env_action = mapping(obs.numpy(), env_action)
+            if shield is not None:
+                env_action = np.array(env_action, dtype=np.float64)
+                for i in range(n):
+                    env_action[i], replaced = shield.filter(envs.unwrapped.task, i, env_action[i])
+                    interventions += replaced
             next_obs, reward, terminated, truncated, info = envs.step(env_action)
             reward = tensor(reward, device)
             terminated, truncated = tensor(terminated, device), tensor(truncated, device)
@@ -516,6 +613,9 @@ def train(config: Config, resume: bool = False) -> dict:
         writer.add_scalar("losses/policy", policy_loss.item(), global_step)
         writer.add_scalar("losses/value", value_loss.item(), global_step)
         writer.add_scalar("losses/clip_fraction", torch.stack(clip_fractions).mean().item(), global_step)
+        if shield is not None:
+            writer.add_scalar("charts/shield_interventions", interventions / (steps * n), global_step)
+            interventions = 0
         if finished["return"]:
             writer.add_scalar("charts/episode_return", float(np.mean(finished["return"])), global_step)
             writer.add_scalar("charts/success_rate", float(np.mean(finished["success"])), global_step)
@@ -580,7 +680,14 @@ class TorchPPOPolicy:
         self.agent.load_state_dict(saved["state_dict"])
         self.agent.eval()
         known = {f.name for f in dataclasses.fields(Config)}
-        self.mapping = residual_mapping(Config(**{k: v for k, v in config.items() if k in known}), unwrapped.task)
+        run_config = Config(**{k: v for k, v in config.items() if k in known})
+        self.mapping = residual_mapping(run_config, unwrapped.task)
+        self.task = unwrapped.task
+        # a run trained behind the shield acts behind it (its model: the nominal parameters)
+        self.shield = None
+        if run_config.shield:
+            from agents.shield import Shield
+            self.shield = Shield(env, None)
         self.name = f"torch-ppo ({run_dir.name})"
 
     def reset(self) -> None:
@@ -590,7 +697,8 @@ class TorchPPOPolicy:
         with torch.no_grad():
             x = self.agent.normalize(torch.as_tensor(np.asarray(obs))[None])
             action = self.agent.heads(x)[0][0].clamp(-1.0, 1.0).numpy().astype(np.float64)
-        return action if self.mapping is None else self.mapping(obs, action)[0]
+        action = action if self.mapping is None else self.mapping(obs, action)[0]
+        return action if self.shield is None else self.shield.filter(self.task, 0, action)[0]
 
 
 def main(argv: list[str] | None = None) -> None:

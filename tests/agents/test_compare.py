@@ -77,10 +77,15 @@ def test_comparison_command_writes_every_policy(tmp_path):
         baselines.publish(runs / "Scara-C11-v1" / "pd" / "td3" / "seed2", tmp_path / "nowhere")
     runs = published
     out = tmp_path / "results"
-    entries, traces = compare.compare(runs, ["c11"], episodes=2, verbose=False, bisection_tolerance=0.01)
+    entries, traces = compare.compare(runs, ["c11"], episodes=2, verbose=False, bisection_tolerance=0.01,
+                                      shielded=("torch-ppo",))
     names = [e["name"] for e in entries]
-    assert names[0] == "pd" and "optimal" in names and names[-2:] == ["td3", "torch-ppo"]
+    assert names[:2] == ["pd", "pd + shield"] and "optimal" in names
+    assert names[-3:] == ["td3", "torch-ppo", "torch-ppo + shield"]
     assert entries[-1]["seeds"] == [3] and entries[-1]["kind"] == "learned"
+    assert entries[-1]["algorithm"] == "torch-ppo + shield" and entries[-1]["collision_rate"] == 0.0
+    shielded_pd = entries[1]  # the shield alone takes PD past the wall
+    assert shielded_pd["success_rate"] == 1.0 and shielded_pd["collision_rate"] == 0.0
     assert sum(e["kind"] == "heuristic" for e in entries) == 4  # two variants, smallest safe and +20 %
     for e in entries:
         assert KEYS <= set(e) and e["condition"] == "c11" and e["episodes"] == 2
@@ -108,7 +113,7 @@ def test_a_condition_without_a_shipped_optimal_solution_is_compared_without_it(m
 
     monkeypatch.setattr(agents.optimal, "cached_solution", lambda *args, **kwargs: None)
     entries, _ = compare.compare(None, ["c11"], episodes=2, verbose=True, bisection_tolerance=0.01)
-    assert [e["kind"] for e in entries] == ["pd"] + ["heuristic"] * 4  # no solve of minutes inside
+    assert [e["kind"] for e in entries] == ["pd", "pd"] + ["heuristic"] * 4  # no solve of minutes inside
     assert "optimal: no shipped solution (python -m agents.optimal --condition c11" in capsys.readouterr().out
 
 
@@ -190,6 +195,7 @@ def test_a_cached_evaluation_is_reused_only_for_the_same_model_condition_and_epi
     assert key != compare.evaluation_key(run, load, "pd", 3, 1000)
     assert key != compare.evaluation_key(run, c11, "pd", 4, 1000)
     assert key != compare.evaluation_key(run, c11, "pd", 3, 1001)
+    assert key != compare.evaluation_key(run, c11, "pd", 3, 1000, shield=True)
     model = (run / "model.pt").read_bytes()
     (run / "model.pt").write_bytes(model + b"\0")  # another model: not the cached one
     with pytest.raises(AssertionError, match="evaluated again"):

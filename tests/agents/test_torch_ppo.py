@@ -1,5 +1,6 @@
 """agents.torch_ppo: the single-file PPO trains, checkpoints, resumes and is evaluated."""
 
+import dataclasses
 import json
 
 import gymnasium as gym
@@ -231,3 +232,97 @@ def test_target_replay_gives_new_episodes_the_failed_targets_until_they_succeed(
     train(Config(num_envs=2, num_steps=64, num_minibatches=1, update_epochs=1, total_timesteps=256,
                  randomize_target=True, target_replay=0.5, out=str(out)))
     assert json.loads((out / "config.json").read_text())["target_replay"] == 0.5
+
+
+def test_a_shielded_run_applies_the_shields_actions_and_acts_behind_it_in_evaluation(tmp_path, monkeypatch):
+    """PD drives the C11 arm into the wall by step ~40; the residual agent starts as PD (its
+    outputs inside the dead zone), so a shielded run must be overruled there, and never collide."""
+    import agents.torch_ppo as torch_ppo
+    from agents.shield import Shield
+
+    calls, replaced, collisions = [0], [0], [0]
+    filter_ = Shield.filter
+
+    def counting_filter(self, task, index, action):
+        out = filter_(self, task, index, action)
+        calls[0] += 1
+        replaced[0] += out[1]
+        return out
+
+    def counting_env(config):
+        envs = make_env(config)
+        step = envs.step
+
+        def counted_step(action):
+            result = step(action)
+            collisions[0] += int(np.sum(result[4]["collisions"] > 0))
+            return result
+        envs.step = counted_step
+        return envs
+
+    monkeypatch.setattr(Shield, "filter", counting_filter)
+    monkeypatch.setattr(torch_ppo, "make_env", counting_env)
+    out = tmp_path / "run"
+    train(Config(num_envs=2, num_steps=64, num_minibatches=1, update_epochs=1, total_timesteps=128,
+                 residual_scale="2.5,2.5,0.05", residual_deadzone=0.5, shield=True, out=str(out)))
+    assert calls[0] == 128 and replaced[0] > 0 and collisions[0] == 0
+    env = gym.make("Scara-C11-v1")
+    policy = make_policy(f"torchppo:{out}", env)
+    assert policy.shield is not None
+    result = run_episode(env, policy, seed=0)
+    assert result["collisions"] == 0
+    with pytest.raises(ValueError, match="shield: the shield's model runs on the CPU"):
+        torch_ppo.make_shield(Config(shield=True, device="cuda"))
+
+
+def test_the_residual_maps_inverse_replays_the_optimal_reference():
+    from agents.optimal import reference_demonstration, replaying
+    from agents.residual import ResidualSetpoint
+
+    observations, actions = reference_demonstration(wall_margin=0.008)
+    env = gym.make("Scara-C11-v1", control_mode="voltage")
+    mapping = ResidualSetpoint(env.unwrapped.task, [2.5, 2.5, 0.05], 0.5)
+    outputs = mapping.agent_actions(observations, actions)
+    assert outputs.shape == actions.shape and np.all(np.abs(outputs) <= 1.0)
+    obs, _ = env.reset(seed=0)
+    for output in outputs:
+        obs, _, terminated, truncated, info = env.step(mapping(obs, output)[0])
+        if terminated or truncated:
+            break
+    replayed = run_episode(*replaying(actions, "Scara-C11-v1", (0, 0, 0), (2, 2, 0.3), scara_gym.DEFAULT_PARAMS),
+                           seed=0)
+    assert info["is_success"] and info["collisions"] == 0
+    assert abs(info["reach_time"] - replayed["reach_time"]) < 1e-6 and replayed["reach_time"] < 1.23
+    # "pd" mode: the inverse of the map's own outputs outside the dead zone is the output itself
+    pd_env = gym.make("Scara-C11-v1")
+    pd_mapping = ResidualSetpoint(pd_env.unwrapped.task, [2.5, 2.5, 0.05], 0.5)
+    obs, _ = pd_env.reset(seed=0)
+    r = np.array([[0.7, -0.6, 0.7], [-0.9, 0.55, -1.0]])  # set-points inside the "pd" range
+    np.testing.assert_allclose(pd_mapping.agent_actions(np.stack([obs, obs]), pd_mapping(np.stack([obs, obs]), r)),
+                               r, atol=1e-9)
+
+
+def test_demo_cloning_starts_the_policy_on_the_reference_and_checks_its_arguments(tmp_path):
+    from agents.torch_ppo import DemoCloning
+
+    config = Config(control_mode="voltage", residual_scale="2.5,2.5,0.05", residual_deadzone=0.5, demo_bc=1.0,
+                    demo_bc_decay=0.5, demo_bc_pretrain=300, demo_wall_margin=0.008, init_log_std=-1.0,
+                    num_envs=2, num_steps=8, num_minibatches=1, update_epochs=1, total_timesteps=32,
+                    out=str(tmp_path / "run"))
+    envs = make_env(config)
+    cloning = DemoCloning(envs, config, residual_mapping(config, envs.unwrapped.task))
+    assert cloning.weight(1) == 1.0 and cloning.weight(3) == 0.25
+    agent = Agent(18, 3, 64, 10.0)
+    with torch.no_grad():
+        before = ((agent.heads(agent.normalize(cloning.obs))[0] - cloning.actions) ** 2).sum(-1).mean().item()
+    after = cloning.pretrain(agent, 300, 1e-3)
+    assert after < 0.1 * before
+    train(config)
+    saved = torch.load(tmp_path / "run" / "model.pt", weights_only=False)["state_dict"]
+    assert saved["actor_logstd"].max() < -0.9  # init_log_std, moved by two small updates at most
+    for bad, match in ((dict(demo_bc=-1.0), "demo_bc must be >= 0"), (dict(demo_bc_decay=0.0), "demo_bc_decay"),
+                       (dict(control_mode="pd"), "control_mode='voltage'"), (dict(residual_scale=""), "residual_scale"),
+                       (dict(randomize_target=True), "randomize_target")):
+        wrong = Config(**{**dataclasses.asdict(config), **bad})
+        with pytest.raises(ValueError, match=match):
+            DemoCloning(make_env(wrong), wrong, residual_mapping(wrong, make_env(wrong).unwrapped.task))
