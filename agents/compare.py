@@ -10,7 +10,10 @@ Every policy runs the same episodes (seeds 1000..) of ``Scara-C11-v1`` in every 
   need one solve per target), and every learned run under ``--runs ENV_ID/MODE/ALGO/seedN``
   (agents.baselines), one entry per algorithm over its seeds;
 - conditions (``CONDITIONS``): the C11 target with the wall, randomized targets, and the C11
-  target under four parameter shifts.
+  target under four parameter shifts;
+- behind agents.shield's model-predictive shield (its model: the nominal parameters): PD and
+  the learned algorithms named by ``--shield`` (default ``SHIELDED``), as entries "... + shield".
+  Runs trained behind the shield (agents.torch_ppo's ``shield``) always act behind it.
 
 Learned algorithms are aggregated with rliable over their training seeds: the interquartile
 mean (IQM) of the time to target and its 95 % stratified-bootstrap confidence interval
