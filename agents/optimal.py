@@ -462,14 +462,11 @@ def replay(actions: np.ndarray, env_id: str = "Scara-C11-v1", start=(0.0, 0.0, 0
     return run_episode(*replaying(actions, env_id, start, target, params), seed=0)
 
 
-def reference_snapshots(env_id: str = "Scara-C11-v1", start=(0.0, 0.0, 0.0), target=(2.0, 2.0, 0.3),
-                        params: ScaraParams = DEFAULT_PARAMS,
-                        wall_margin: float = CollocationConfig.wall_margin) -> list[dict]:
-    """The states the optimal reference (its shipped solution with this wall margin) passes
-    through in the environment, one after each of its control steps before the last (the one
-    that reaches the target), as ``ScaraTask.snapshot`` gives them: starts for reference state
-    initialization (agents.torch_ppo's ``demo_resets``). Raises if the replay does not reach
-    the target."""
+def _reference_replay(env_id: str, start, target, params: ScaraParams, wall_margin: float):
+    """The shipped solution with this wall margin replayed in the environment ("voltage" mode):
+    (the observation before each control step, the held action taken there, the task's
+    snapshot after each step but the last). Raises if there is no such solution or the replay
+    does not reach the target without a collision."""
     data = cached_solution(start, target, params, wall_margin)
     if data is None:
         raise LookupError(f"no shipped minimum-time solution from {list(start)} to {list(target)} with wall margin "
@@ -478,9 +475,12 @@ def reference_snapshots(env_id: str = "Scara-C11-v1", start=(0.0, 0.0, 0.0), tar
     task = env.unwrapped.task
     obs, _ = env.reset(seed=0)
     policy.reset()
-    snapshots = []
+    observations, actions, snapshots = [], [], []
     while True:
-        obs, _, terminated, truncated, info = env.step(policy(obs))
+        action = policy(obs)
+        observations.append(np.asarray(obs, dtype=np.float64))
+        actions.append(np.asarray(action, dtype=np.float64))
+        obs, _, terminated, truncated, info = env.step(action)
         if terminated or truncated:
             break
         snapshots.append(task.snapshot(0))
@@ -488,7 +488,18 @@ def reference_snapshots(env_id: str = "Scara-C11-v1", start=(0.0, 0.0, 0.0), tar
     if not info["is_success"] or info["collisions"]:
         raise RuntimeError(f"the optimal reference from {list(start)} to {list(target)} does not reach the "
                            f"target without a collision in {env_id}")
-    return snapshots
+    return observations, actions, snapshots
+
+
+def reference_snapshots(env_id: str = "Scara-C11-v1", start=(0.0, 0.0, 0.0), target=(2.0, 2.0, 0.3),
+                        params: ScaraParams = DEFAULT_PARAMS,
+                        wall_margin: float = CollocationConfig.wall_margin) -> list[dict]:
+    """The states the optimal reference (its shipped solution with this wall margin) passes
+    through in the environment, one after each of its control steps before the last (the one
+    that reaches the target), as ``ScaraTask.snapshot`` gives them: starts for reference state
+    initialization (agents.torch_ppo's ``demo_resets``). Raises if the replay does not reach
+    the target."""
+    return _reference_replay(env_id, start, target, params, wall_margin)[2]
 
 
 def reference_demonstration(env_id: str = "Scara-C11-v1", start=(0.0, 0.0, 0.0), target=(2.0, 2.0, 0.3),
@@ -498,25 +509,7 @@ def reference_demonstration(env_id: str = "Scara-C11-v1", start=(0.0, 0.0, 0.0),
     mode): the observation before each of its control steps and the held action it takes
     there, as float64 arrays (steps, 18) and (steps, 3). Demonstrations for behaviour cloning
     (agents.torch_ppo's ``demo_bc``). Raises if the replay does not reach the target."""
-    data = cached_solution(start, target, params, wall_margin)
-    if data is None:
-        raise LookupError(f"no shipped minimum-time solution from {list(start)} to {list(target)} with wall margin "
-                          f"{wall_margin} m (python -m agents.optimal --wall-margin M --write FILE makes one)")
-    env, policy = replaying(np.array(data["held"]["actions"]), env_id, start, target, params)
-    obs, _ = env.reset(seed=0)
-    policy.reset()
-    observations, actions = [], []
-    while True:
-        action = policy(obs)
-        observations.append(np.asarray(obs, dtype=np.float64))
-        actions.append(np.asarray(action, dtype=np.float64))
-        obs, _, terminated, truncated, info = env.step(action)
-        if terminated or truncated:
-            break
-    env.close()
-    if not info["is_success"] or info["collisions"]:
-        raise RuntimeError(f"the optimal reference from {list(start)} to {list(target)} does not reach the "
-                           f"target without a collision in {env_id}")
+    observations, actions, _ = _reference_replay(env_id, start, target, params, wall_margin)
     return np.array(observations), np.array(actions)
 
 

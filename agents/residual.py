@@ -51,7 +51,7 @@ class ResidualSetpoint:
         env_actions = np.atleast_2d(np.asarray(env_actions, dtype=float))
         target = obs[:, Q] + obs[:, TARGET_ERROR]
         if self.task.control_mode == "pd":
-            setpoint = self.task.setpoint_center + self.task.setpoint_half * env_actions
+            setpoint = self.task.action_to_setpoint(env_actions)
         else:
             p = self.task.robot_params[0]
             limit = np.where(obs[:, CRITICAL, None] > 0.5, p["wide_voltage_limit"], p["voltage_limit"])

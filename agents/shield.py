@@ -41,7 +41,7 @@ class Shield:
     def __init__(self, env, policy, params: ScaraParams | None = DEFAULT_PARAMS, horizon: int = 100,
                  rest_rate: float = 0.02, climb_margin: float = 0.01) -> None:
         self.env = env.unwrapped if hasattr(env, "unwrapped") else env
-        if getattr(self.env, "actuator", None) is not None or getattr(self.env.task, "actuator", None) is not None:
+        if self.env.task.actuator is not None:
             raise ValueError("Shield: the action_delay / action_rate_limit line has a state the model cannot copy")
         if not (isinstance(horizon, (int, np.integer)) and 1 <= horizon <= 1000):
             raise ValueError(f"horizon must be an integer in [1, 1000] control steps, got {horizon!r}")
@@ -58,7 +58,6 @@ class Shield:
             kwargs["params"] = params
         self.model = gym.make(spec.id if spec is not None else "Scara-C11-v1", **kwargs).unwrapped
         self.model_task = self.model.task
-        self.model_target = None
         self.name = f"{getattr(policy, 'name', 'policy')} + shield"
         self.interventions = 0
 
@@ -81,9 +80,8 @@ class Shield:
         """Whether, from ``snapshot``, ``action`` and then the backup leave the wall untouched
         and bring axes 1 and 2 to rest within the horizon (or reach the target)."""
         task = self.model_task
-        if self.model_target is None or not np.array_equal(self.model_target, snapshot["target"]):
+        if not np.array_equal(task.robot_params["target"][0], snapshot["target"]):  # the model's episode's target
             self.model.reset(seed=0, options={"target": tuple(float(x) for x in snapshot["target"])})
-            self.model_target = np.array(snapshot["target"], dtype=float)
         task.restore(0, {**snapshot, "params": task.episode_params[0]})
         outcome = task.outcomes[0]
         action = np.ascontiguousarray(action, dtype=np.float64)

@@ -682,7 +682,6 @@ class TorchPPOPolicy:
         known = {f.name for f in dataclasses.fields(Config)}
         run_config = Config(**{k: v for k, v in config.items() if k in known})
         self.mapping = residual_mapping(run_config, unwrapped.task)
-        self.task = unwrapped.task
         # a run trained behind the shield acts behind it (its model: the nominal parameters)
         self.shield = None
         if run_config.shield:
@@ -698,7 +697,7 @@ class TorchPPOPolicy:
             x = self.agent.normalize(torch.as_tensor(np.asarray(obs))[None])
             action = self.agent.heads(x)[0][0].clamp(-1.0, 1.0).numpy().astype(np.float64)
         action = action if self.mapping is None else self.mapping(obs, action)[0]
-        return action if self.shield is None else self.shield.filter(self.task, 0, action)[0]
+        return action if self.shield is None else self.shield.filter(self.shield.env.task, 0, action)[0]
 
 
 def main(argv: list[str] | None = None) -> None:
