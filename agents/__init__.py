@@ -1,9 +1,8 @@
-"""Reference policies (PD, the seed's heuristic, the optimal reference) and learned baselines."""
+"""Agents for the scara_gym environments, in layers that import downwards only:
 
-import warnings
-
-import gymnasium  # noqa: F401  (its logger installs a DeprecationWarning filter; ours goes in front)
-
-# The baselines train and compare on Scara-C11-v1 on purpose (scara_gym.TRAINING_ENV_ID), where
-# Gymnasium would warn at every make that a -v2 exists.
-warnings.filterwarnings("ignore", message=r".*Scara-C11-v1 is out of date", category=DeprecationWarning)
+- :mod:`agents.policies`: things that act (PD, the seed's ``dec`` heuristic, the optimal reference);
+- :mod:`agents.algorithms`: things that train (the single-file torch PPO, stable-baselines3);
+- :mod:`agents.experiments`: things that orchestrate and report (the run registry, training
+  campaigns, one evaluation engine, the comparison, sweeps, checkpoint selection, benchmarks);
+- :mod:`agents.cli`: the ``scara-agents`` console script.
+"""

@@ -2,66 +2,41 @@
 
 Layout: :mod:`scara_gym.model` (the physics: numpy + numba), :mod:`scara_gym.envs` (the
 task object, the compiled environment step, the single and vector environments, the
-renderer), :mod:`scara_gym.benchmark` (the seed paper's tasks, the scipy reference,
-``scara-c11 reproduce`` and ``bench``), :mod:`scara_gym.integrations` (stable-baselines3).
+renderer, the vector-env factory), :mod:`scara_gym.wrappers` (what sits between an agent and
+the env: the residual set-point and the model-predictive shield), :mod:`scara_gym.benchmark`
+(the seed paper's tasks, the scipy reference, ``scara-c11 reproduce`` and ``bench``),
+:mod:`scara_gym.integrations` (stable-baselines3) and :mod:`scara_gym.registration` (the ids).
+Nothing here imports the ``agents`` package.
 """
 
-from scara_gym.model import (
-    DEFAULT_PARAMS, ArmParams, AxisParams, Event, ObstacleParams, ScaraParams, SimulationError, Simulator,
-    TaskParams, Trajectory,
-)
 from scara_gym.benchmark.tasks import compare_forms, obstacle_avoidance, point_to_point
+from scara_gym.model import (
+    DEFAULT_PARAMS,
+    ArmParams,
+    AxisParams,
+    Event,
+    ObstacleParams,
+    ScaraParams,
+    SimulationError,
+    Simulator,
+    TaskParams,
+    Trajectory,
+)
+from scara_gym.registration import (
+    ENV_ID,
+    ENV_IDS,
+    ENV_KWARGS,
+    ENV_VARIANTS,
+    ENV_VERSIONS,
+    GOAL_ENV_IDS,
+    LATEST_ENV_ID,
+    TRAINING_ENV_ID,
+    register_all,
+)
 
 __version__ = "0.3.0"
 
-from gymnasium.envs.registration import register, registry  # noqa: E402
-
-ENV_VERSIONS = {
-    # v0: the 0.1 integration, switches seen at the ends of integration steps
-    "Scara-C11-v0": {"rtol": 1e-5, "atol": 1e-6, "exact_switches": False},
-    # v1: every mode switch located inside the steps; within the accuracy targets except the
-    # currents right after the critical switch's voltage jump ("voltage" mode)
-    "Scara-C11-v1": {"rtol": 1e-6, "atol": 1e-8, "exact_switches": True},
-    # v2: v1 at rtol 1e-7 / atol 1e-9, which also keeps the currents after the voltage jump at the
-    # critical switch within the targets (1.45x v1's right-hand sides; README, "Accuracy")
-    "Scara-C11-v2": {"rtol": 1e-7, "atol": 1e-9, "exact_switches": True},
-}
-"""Registered id -> the integration arguments it fixes (the card's version history)."""
-ENV_ID = "Scara-C11-v0"
-"""The id the shipped agents were trained and are evaluated on."""
-LATEST_ENV_ID = "Scara-C11-v2"
-"""The id for new work: the exact physics, within every accuracy target at its tolerances."""
-TRAINING_ENV_ID = "Scara-C11-v1"
-"""The id the learned baselines are trained and compared on (agents.baselines, agents.compare):
-v2's physics within the accuracy targets except the currents just after a critical switch in
-"voltage" mode, at 1/1.45 of v2's right-hand sides per step."""
-ENV_VARIANTS = {
-    # the C11 task with parameters drawn per episode (scara_gym.envs.randomization), on v1's physics
-    "Scara-C11-RandomPhysics-v0": {**ENV_VERSIONS[TRAINING_ENV_ID], "randomize_params": "physics"},
-    "Scara-C11-RandomWall-v0": {**ENV_VERSIONS[TRAINING_ENV_ID], "randomize_params": "wall"},
-    # the goal-conditioned task (Dict observations, compute_reward for HER), goals drawn per episode
-    "Scara-C11-Goal-v0": {**ENV_VERSIONS[TRAINING_ENV_ID], "randomize_target": True},
-}
-"""Registered variant id -> the arguments it fixes (each variant's card: scara_gym.envs.variants)."""
-GOAL_ENV_IDS = ("Scara-C11-Goal-v0",)
-"""The ids with the goal API (Dict observations, compute_reward): SB3 trains them with HER."""
-ENV_KWARGS = {**ENV_VERSIONS, **ENV_VARIANTS}
-"""Every registered id -> the constructor arguments it registers (the vector env gets them too)."""
-ENV_IDS = tuple(ENV_KWARGS)
-"""Every environment id this package registers."""
-_ENTRY_POINTS = {
-    "Scara-C11-RandomPhysics-v0": "scara_gym.envs.variants:ScaraRandomPhysicsEnv",
-    "Scara-C11-RandomWall-v0": "scara_gym.envs.variants:ScaraRandomWallEnv",
-    "Scara-C11-Goal-v0": "scara_gym.envs.goal:ScaraGoalEnv",
-}
-_VECTOR_ENTRY_POINTS = {"Scara-C11-Goal-v0": "scara_gym.envs.goal:make_goal_vector_env"}
-for _env_id, _kwargs in ENV_KWARGS.items():
-    if _env_id not in registry:
-        # 300 steps of the default 0.01 s control step: the 3 s time limit
-        register(id=_env_id, entry_point=_ENTRY_POINTS.get(_env_id, "scara_gym.envs:ScaraEnv"),
-                 max_episode_steps=300,
-                 vector_entry_point=_VECTOR_ENTRY_POINTS.get(_env_id, "scara_gym.envs.vector:make_vector_env"),
-                 kwargs=dict(_kwargs))
+register_all()
 
 __all__ = [
     "ENV_ID", "ENV_IDS", "ENV_KWARGS", "GOAL_ENV_IDS", "ENV_VARIANTS", "ENV_VERSIONS", "LATEST_ENV_ID", "TRAINING_ENV_ID",

@@ -127,7 +127,7 @@ def test_a_non_editable_install_works_outside_the_clone(tmp_path):
     subprocess.run([sys.executable, "-m", "pip", "install", "-q", "--no-deps", "--target", str(site), str(ROOT)],
                    check=True, capture_output=True, text=True)
     shipped = site / "agents" / "models"
-    assert (shipped / "ppo_pd" / "model.zip").exists() and (site / "agents" / "hyperparams" / "ppo.yml").exists()
+    assert (shipped / "ppo_pd" / "model.zip").exists() and (site / "agents" / "algorithms" / "sb3" / "hyperparams" / "ppo.yml").exists()
     before = _tree_digest(shipped)
     work = tmp_path / "elsewhere"
     work.mkdir()
@@ -139,17 +139,17 @@ def test_a_non_editable_install_works_outside_the_clone(tmp_path):
 
     where = run("-c", "import agents, scara_gym; print(agents.__file__, scara_gym.__file__)")
     assert where.returncode == 0 and where.stdout.count(str(site)) == 2, where.stdout + where.stderr
-    evaluated = run("-m", "agents.evaluate", "--policies", "pd", "ppo:ppo_pd", "--episodes", "1", "--out", "out")
+    evaluated = run("-m", "agents", "evaluate", "--policies", "pd", "ppo:ppo_pd", "--episodes", "1", "--out", "out")
     assert evaluated.returncode == 0, evaluated.stderr
     assert compilation.COMPILE_MESSAGE in evaluated.stderr  # a fresh install compiles, and says so
     assert "| ppo (ppo_pd) | 1 | 1.0000 | 0.0000 |" in evaluated.stdout
     assert (work / "out" / "table.md").exists() and (work / "out" / "ppo_pd_results.json").exists()
-    trained = run("-m", "agents.train", "--total-timesteps", "256", "--no-progress-bar", "--n-envs", "2",
-                  "--n-steps", "64", "--batch-size", "64")
+    trained = run("-m", "agents", "train", "ppo-residual", "--env-id", "Scara-C11-v0", "--total-timesteps", "256",
+                  "--out", "runs/ppo_pd", "--set", "n_envs=2", "n_steps=64", "batch_size=64")
     assert trained.returncode == 0, trained.stderr
     assert trained.stderr.count(compilation.COMPILE_MESSAGE) <= 1  # the vector env's entry points: once
     assert (work / "runs" / "ppo_pd" / "model.zip").exists()
-    again = run("-m", "agents.evaluate", "--policies", "ppo:runs/ppo_pd", "--episodes", "1", "--out", "out")
+    again = run("-m", "agents", "evaluate", "--policies", "ppo:runs/ppo_pd", "--episodes", "1", "--out", "out")
     assert again.returncode == 0, again.stderr
     assert compilation.COMPILE_MESSAGE not in again.stderr  # cached on disk by the first run
     assert sorted(p.name for p in work.iterdir()) == ["out", "runs"]

@@ -239,6 +239,7 @@ def gpu_available() -> str | None:
     """None when a CUDA GPU can run the CUDA backend, else why not (in words)."""
     try:
         from scara_gym.envs.cuda_vector import load_backend
+
         load_backend()
     except (ImportError, RuntimeError) as error:
         return str(error)
@@ -322,38 +323,6 @@ def bench_warp_bound(control_mode: str = "voltage", n: int = 4096, steps: int = 
             "mean_work": float(mean.mean()), "largest_work": int(largest.max())}
 
 
-def bench_ppo(device: str = "cpu", num_envs: int = 16, num_steps: int = 128, total_timesteps: int = 32768,
-              sb3: bool = True, minibatch_size: int = 64) -> dict:
-    """End-to-end training steps/s of agents.torch_ppo and, with sb3, of stable-baselines3's PPO with
-    equal batch settings (num_envs x num_steps per rollout, minibatches of minibatch_size, 10 epochs, the same
-    env id and arguments, VecNormalize for SB3 as the torch PPO normalizes), each timed over its
-    learning loop."""
-    import tempfile
-
-    from agents.torch_ppo import Config, train
-
-    minibatches = max(1, num_envs * num_steps // minibatch_size)
-    with tempfile.TemporaryDirectory() as out:
-        config = Config(device=device, num_envs=num_envs, num_steps=num_steps, num_minibatches=minibatches,
-                        update_epochs=10, total_timesteps=total_timesteps, checkpoint_every=10**9, out=out)
-        figures = {"torch_ppo": train(config)["steps_per_second"]}
-    if sb3:
-        from stable_baselines3 import PPO
-        from stable_baselines3.common.vec_env import VecNormalize
-
-        from scara_gym import ENV_KWARGS
-        from scara_gym.integrations.sb3 import SB3VecEnv
-
-        env = VecNormalize(SB3VecEnv(num_envs=num_envs, num_threads=1, **ENV_KWARGS[config.env_id]),
-                           gamma=config.gamma)
-        model = PPO("MlpPolicy", env, n_steps=num_steps, batch_size=minibatch_size, n_epochs=10, seed=0,
-                    device="cpu")
-        started = time.perf_counter()
-        model.learn(total_timesteps)
-        figures["sb3_ppo"] = total_timesteps / (time.perf_counter() - started)
-    return figures
-
-
 def main(quick: bool = False, stream=None, gpu_only: bool = False) -> str:
     import warnings
 
@@ -422,17 +391,6 @@ def _main(quick: bool, stream, gpu_only: bool) -> str:
                   f"cold (empty JIT cache) {cold:.1f} s, warm (cached) {warm:.2f} s")
     print(chunks[-1] + "\n", file=stream, flush=True)
 
-    try:
-        import torch  # noqa: F401
-        figures = bench_ppo(total_timesteps=4096 if quick else 32768)
-        chunks.append(f"PPO training on the CPU ({torch.get_num_threads()} torch threads, 16 envs x 128 steps, "
-                      f"minibatches of 64, 10 epochs, Scara-C11-v1): agents.torch_ppo "
-                      f"{figures['torch_ppo']:,.0f} steps/s, stable-baselines3 PPO {figures['sb3_ppo']:,.0f} "
-                      f"steps/s, ratio {figures['torch_ppo'] / figures['sb3_ppo']:.2f}")
-    except ImportError as error:
-        chunks.append(f"PPO training: skipped ({error}; pip install 'scara_gym[train]')")
-    print(chunks[-1] + "\n", file=stream, flush=True)
-
     chunks.append(gpu_section(quick, stream))
     return "\n\n".join(chunks)
 
@@ -446,11 +404,6 @@ def gpu_section(quick: bool, stream) -> str:
         lines = ["CUDA vector environment (device='cuda', random voltage actions, Scara-C11-v1):",
                  "| N | robot-steps/s | largest |q| difference to the CPU env after the steps |", "|---|---|---|"]
         lines += [f"| {row['n']:,} | {row['rate']:,.0f} | {row['q_difference']:.1e} |" for row in rows]
-        gpu_ppo = bench_ppo(device="cuda", num_envs=4096, num_steps=32, total_timesteps=4096 * 32 * (2 if quick else 8),
-                            sb3=False, minibatch_size=4096 * 32 // 4)
-        lines.append(f"\nPPO on the GPU (agents.torch_ppo, 4,096 envs x 32 steps, 4 minibatches, everything on the "
-                     f"device): "
-                     f"{gpu_ppo['torch_ppo']:,.0f} steps/s end to end")
         text = "\n".join(lines)
     print(text, file=stream, flush=True)
     return text

@@ -17,7 +17,12 @@ import numpy as np
 from scara_gym.model import checks
 from scara_gym.model.params import DEFAULT_PARAMS, ScaraParams, resolve_params
 from scara_gym.model.simulator import (
-    REFERENCE_ATOL, REFERENCE_RTOL, Simulator, Trajectory, check_state, start_state,
+    REFERENCE_ATOL,
+    REFERENCE_RTOL,
+    Simulator,
+    Trajectory,
+    check_state,
+    start_state,
 )
 
 VARIANTS = ("restart", "continuous", "none")

@@ -15,7 +15,11 @@
 from scara_gym.envs.randomization import PRESETS as RANDOMIZATION_PRESETS, ParameterRanges
 from scara_gym.envs.scara_env import ScaraEnv
 from scara_gym.envs.task import (
-    OBSERVATION_LAYOUT, OBSERVATION_NAMES, REWARD_TERMS, RewardWeights, ScaraTask,
+    OBSERVATION_LAYOUT,
+    OBSERVATION_NAMES,
+    REWARD_TERMS,
+    RewardWeights,
+    ScaraTask,
 )
 
 __all__ = ["OBSERVATION_LAYOUT", "OBSERVATION_NAMES", "RANDOMIZATION_PRESETS", "REWARD_TERMS", "ParameterRanges",

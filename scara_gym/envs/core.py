@@ -21,12 +21,19 @@ import math
 import numpy as np
 from numba import njit, prange
 
+from scara_gym.model import records as R
 from scara_gym.model.compilation import JIT
 from scara_gym.model.dynamics import applied_voltages, pd_voltage, tip_position, voltage_limit
 from scara_gym.model.integrator import initial_modes, integrate_with, new_workspace
-from scara_gym.model import records as R
 from scara_gym.model.records import (
-    CURRENT, ENERGY, F8, I8, Q, RATE, STATUS_BAD_ACTION, field_offset,
+    CURRENT,
+    ENERGY,
+    F8,
+    I8,
+    RATE,
+    STATUS_BAD_ACTION,
+    Q,
+    field_offset,
 )
 
 F4 = np.float32

@@ -17,8 +17,7 @@ from gymnasium.vector.utils import batch_space
 from scara_gym.envs.core import INFO_FIELDS, N_PARAMS_FLOATS, REWARD_TERMS, STATUS_NO_PLAN
 from scara_gym.envs.task import RESET_OPTIONS, ScaraTask, check_actions, vector_seeds
 from scara_gym.envs.vector import check_autoreset_mode
-from scara_gym.model import checks
-from scara_gym.model import records as R
+from scara_gym.model import checks, records as R
 from scara_gym.model.simulator import SimulationError, failure_message
 
 CUDA_EXTRA = 'pip install "scara_gym[cuda]"'

@@ -96,7 +96,7 @@ class ParameterRanges:
     ranges: Mapping[str, tuple[float, float]]
 
     @classmethod
-    def from_argument(cls, value, nominal: ScaraParams) -> "ParameterRanges | None":
+    def from_argument(cls, value, nominal: ScaraParams) -> ParameterRanges | None:
         """``randomize_params`` of the environments: None/False (off), True ("physics"), a preset
         name, a ParameterRanges, or a dict path -> (low, high) in the parameter's unit."""
         text = (f"randomize_params must be False, True, one of {sorted(PRESETS)}, a ParameterRanges or a "
@@ -131,7 +131,7 @@ class ParameterRanges:
         return cls(dict(sorted(ranges.items())))
 
     @classmethod
-    def preset(cls, name: str, nominal: ScaraParams) -> "ParameterRanges":
+    def preset(cls, name: str, nominal: ScaraParams) -> ParameterRanges:
         """A preset of the module's table around the nominal parameters."""
         ranges = {}
         for path, kind, low, high in PRESETS[name]:

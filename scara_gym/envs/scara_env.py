@@ -7,8 +7,7 @@ import numpy as np
 from gymnasium import spaces
 
 from scara_gym.envs.task import OBSERVATION_NAMES, RewardWeights, ScaraTask, check_actions
-from scara_gym.model import checks
-from scara_gym.model import records as R
+from scara_gym.model import checks, records as R
 from scara_gym.model.params import ScaraParams
 
 

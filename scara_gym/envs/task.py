@@ -23,14 +23,24 @@ from typing import NamedTuple
 import numpy as np
 
 from scara_gym.envs.core import (
-    N_INFO, N_OBS, OBSERVATION, OUTCOME, REWARD_TERMS, TASK, begin_robot, pack_info, pd_actions, restore_robot,
-    step_robot, step_robots, step_robots_serial,
+    N_INFO,
+    N_OBS,
+    OBSERVATION,
+    OUTCOME,
+    REWARD_TERMS,
+    TASK,
+    begin_robot,
+    pack_info,
+    pd_actions,
+    restore_robot,
+    step_robot,
+    step_robots,
+    step_robots_serial,
 )
-from scara_gym.model import records as R
-from scara_gym.model.dynamics import tip_position
-from scara_gym.model import checks
 from scara_gym.envs.randomization import ParameterRanges, check_overrides, within_bounds
 from scara_gym.envs.sim_to_real import Actuator, SimToReal, add_noise
+from scara_gym.model import checks, records as R
+from scara_gym.model.dynamics import tip_position
 from scara_gym.model.params import DEFAULT_PARAMS, ScaraParams, resolve_params
 from scara_gym.model.simulator import CONTROLS, SimulationError, check_state, check_tolerance, failure_message
 
@@ -275,6 +285,29 @@ class ScaraTask:
         params = self.robot_params if len(obs) == self.num_robots else self.robot_params[:1]
         out = pd_actions(np.ascontiguousarray(obs), setpoints, params, np.empty((len(obs), 3)))
         return out[0] if single else out
+
+    def pd_setpoint(self, obs, actions, saturation_margin: float = 0.2) -> np.ndarray:
+        """The inverse of :meth:`pd_action`: the set-point q^ [rad, rad, m] for which the C11 PD
+        law gives the "voltage"-mode actions on the observations (batches as pd_action). The law
+        saturates, so a saturated action (|action| >= 0.999) asks ``saturation_margin`` more, to
+        stay saturated when the set-point is commanded again."""
+        single = np.ndim(obs) == 1
+        obs = np.atleast_2d(np.asarray(obs, dtype=np.float64))
+        actions = np.atleast_2d(np.asarray(actions, dtype=np.float64))
+        p = self.robot_params if len(obs) == self.num_robots else self.robot_params[:1]
+        critical = obs[:, OBSERVATION_LAYOUT["critical"], None] > 0.5
+        limit = np.where(critical, p["wide_voltage_limit"], p["voltage_limit"])
+        boost = np.where(np.abs(actions) >= 0.999, 1.0 + saturation_margin, 1.0)
+        rates = obs[:, OBSERVATION_LAYOUT["rate"]]
+        setpoint = obs[:, OBSERVATION_LAYOUT["q"]] + (actions * boost * limit + p["d_gain"] * rates) / p["p_gain"]
+        return setpoint[0] if single else setpoint
+
+    def setpoint_action(self, obs, setpoint) -> np.ndarray:
+        """The action that commands the set-point q^ [rad, rad, m] in this task's control mode:
+        the clipped "pd" action, or the PD law's voltages (:meth:`pd_action`); batches too."""
+        if self.control_mode == "pd":
+            return np.clip((np.asarray(setpoint, dtype=float) - self.setpoint_center) / self.setpoint_half, -1.0, 1.0)
+        return self.pd_action(obs, setpoint)
 
     @staticmethod
     def check_joints(value, name: str) -> np.ndarray:

@@ -33,7 +33,7 @@ def _card(summary: str, defaults: dict, history: str) -> str:
     body = _observation_rows(base[base.index("## Action space"):base.index("## Version history")], defaults)
     for name, value in defaults.items():
         text = repr(value).replace("'", '"')
-        body, found = re.subn(rf"^(- {name} \()[^)]*(\))", lambda m: m.group(1) + text + m.group(2), body,
+        body, found = re.subn(rf"^(- {name} \()[^)]*(\))", lambda m, text=text: m.group(1) + text + m.group(2), body,
                               flags=re.M)
         assert found == 1, name
     return f"{inspect.cleandoc(summary)}\n\n{body}## Version history\n\n{inspect.cleandoc(history)}\n"

@@ -161,17 +161,3 @@ def _masked(obs, done: np.ndarray):
     if isinstance(obs, dict):
         return {key: _masked(value, done) for key, value in obs.items()}
     return np.where(done[:, None], obs, 0).astype(obs.dtype)
-
-
-DEVICES = ("cpu", "cuda")
-
-
-def make_vector_env(num_envs: int = 1, device: str = "cpu", **kwargs) -> VectorEnv:
-    """The vector entry point of the registered ids: ``device="cpu"`` (default) gives
-    :class:`ScaraVectorEnv`, ``device="cuda"`` the GPU backend
-    (:class:`scara_gym.envs.cuda_vector.ScaraCudaVectorEnv`), with the same arguments."""
-    device = checks.choice("device", device, DEVICES)
-    if device == "cuda":
-        from scara_gym.envs.cuda_vector import ScaraCudaVectorEnv
-        return ScaraCudaVectorEnv(num_envs=num_envs, **kwargs)
-    return ScaraVectorEnv(num_envs=num_envs, **kwargs)

@@ -10,9 +10,8 @@ Wrap it in ``VecNormalize`` as usual.
 
 from __future__ import annotations
 
-from typing import Any
-
 import time
+from typing import Any
 
 import numpy as np
 from stable_baselines3.common.vec_env.base_vec_env import VecEnv

@@ -12,7 +12,12 @@ numpy and numba only: nothing here imports gymnasium or torch (a test reads the 
 
 from scara_gym.model import compilation  # noqa: F401  (cache locators before any compiled function)
 from scara_gym.model.params import (
-    DEFAULT_PARAMS, ArmParams, AxisParams, ObstacleParams, ScaraParams, TaskParams,
+    DEFAULT_PARAMS,
+    ArmParams,
+    AxisParams,
+    ObstacleParams,
+    ScaraParams,
+    TaskParams,
 )
 from scara_gym.model.simulator import Event, SimulationError, Simulator, Trajectory, start_state
 

@@ -38,7 +38,7 @@ COMPILE_MESSAGE = ("scara_gym: compiling the model with numba (first use after a
                    "an edit: about 40 s on 2 cores; the machine code is cached on disk)")
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def _digest(files: tuple[tuple[str, float, int], ...]) -> bytes:
     sha = hashlib.sha256()
     for path, _, _ in files:

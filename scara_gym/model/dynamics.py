@@ -16,7 +16,7 @@ import numpy as np
 from numba import njit
 
 from scara_gym.model.compilation import JIT, JIT_INLINE
-from scara_gym.model.records import CONTROL_PD, CURRENT, ENERGY, FORM_EXPLICIT, Q, RATE
+from scara_gym.model.records import CONTROL_PD, CURRENT, ENERGY, FORM_EXPLICIT, RATE, Q
 
 
 @njit(**JIT)

@@ -18,13 +18,15 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass, field
-from typing import Any, Mapping
+from typing import Any
 
 import numpy as np
 
 from scara_gym.model import checks
 from scara_gym.model.records import PARAMS
+
 
 def _quantity(default: float, unit: str, low: float, high: float, doc: str = "", *,
               low_open: bool = False) -> Any:
@@ -200,7 +202,7 @@ class ScaraParams:
     def current_limits(self) -> np.ndarray:
         return np.array([a.current_limit for a in self.axes])
 
-    def replace(self, overrides: Mapping[str, Any] | None = None, **kwargs: Any) -> "ScaraParams":
+    def replace(self, overrides: Mapping[str, Any] | None = None, **kwargs: Any) -> ScaraParams:
         """A copy with dotted-path overrides, e.g. ``{"arm.load_mass": 1.0, "axes.2.p_gain": 4000}``."""
         if overrides is not None and not isinstance(overrides, Mapping):
             raise TypeError(f"parameter overrides must be a dict of dotted paths -> values, e.g. "
@@ -301,7 +303,7 @@ def _replace_path(node: Any, parts: list[str], value: Any, full: str) -> Any:
 DEFAULT_PARAMS = ScaraParams()
 
 
-def resolve_params(params: "ScaraParams | Mapping[str, Any] | None") -> ScaraParams:
+def resolve_params(params: ScaraParams | Mapping[str, Any] | None) -> ScaraParams:
     """A ScaraParams from None (the C11 defaults), a ScaraParams, or a dict of dotted-path
     overrides of the defaults."""
     if params is None:

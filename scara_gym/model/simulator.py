@@ -7,13 +7,12 @@ one segment and returns a :class:`Trajectory`.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import Sequence
 
 import numpy as np
 
-from scara_gym.model import checks
-from scara_gym.model import records as R
+from scara_gym.model import checks, records as R
 from scara_gym.model.dynamics import tip_positions
 from scara_gym.model.integrator import advance, start
 from scara_gym.model.params import DEFAULT_PARAMS, ScaraParams, resolve_params
@@ -114,7 +113,7 @@ class Trajectory:
         return self.first("collision")
 
     @staticmethod
-    def concatenate(parts: Sequence["Trajectory"], status: str | None = None) -> "Trajectory":
+    def concatenate(parts: Sequence[Trajectory], status: str | None = None) -> Trajectory:
         stats = {}
         for part in parts:
             for key, value in part.stats.items():

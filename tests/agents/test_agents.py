@@ -58,12 +58,14 @@ def test_bad_heuristic_arguments():
 @pytest.mark.slow
 def test_tiny_training_run_saves_a_model_that_loads(tmp_path):
     pytest.importorskip("stable_baselines3")
-    from agents.ppo import PPOPolicy, load_hyperparams, train
+    from agents.algorithms.sb3.hyperparams import load_hyperparams
+    from agents.algorithms.sb3.policy import PPOPolicy
+    from agents.algorithms.sb3.training import train_residual_ppo
 
-    hyper = load_hyperparams()
+    hyper = load_hyperparams("ppo-residual", "Scara-C11-v0")
     hyper.update(n_envs=4, n_steps=128, batch_size=256, n_epochs=1)
-    out = train("pd", seed=0, total_timesteps=2048, out=tmp_path / "tiny", hyperparams=hyper,
-                eval_freq=1024, eval_episodes=1, progress_bar=False)
+    out = train_residual_ppo("pd", seed=0, total_timesteps=2048, out=tmp_path / "tiny", hyperparams=hyper,
+                             eval_freq=1024, eval_episodes=1, progress_bar=False, env_id="Scara-C11-v0")
     for name in ("model.zip", "vecnormalize.pkl", "config.json"):
         assert (out / name).exists()
     assert (out / "eval" / "evaluations.npz").exists() and any((out / "tb").iterdir())
@@ -89,7 +91,7 @@ def test_shipped_model_meets_its_reported_success_rate(model_dir):
     the recording: up to 1e-4 s (ppo_pd), 0.015 s (ppo_pd_random), 0.18 s (ppo_voltage, every
     episode); the same machine with MKL_ENABLE_INSTRUCTIONS=AVX2 moves ppo_pd by 0.08 s."""
     pytest.importorskip("stable_baselines3")
-    from agents.ppo import PPOPolicy
+    from agents.algorithms.sb3.policy import PPOPolicy
 
     reported = json.loads((model_dir / "results.json").read_text())
     config = json.loads((model_dir / "config.json").read_text())
@@ -108,9 +110,9 @@ def test_shipped_model_meets_its_reported_success_rate(model_dir):
 
 
 def test_evaluate_writes_tables_and_plots(tmp_path):
-    from agents.evaluate import main
+    from agents.cli import run
 
-    rows = main(["--policies", "pd", "dec-continue:0.06", "--episodes", "2", "--out", str(tmp_path)])
+    rows = run(["evaluate", "--policies", "pd", "dec-continue:0.06", "--episodes", "2", "--out", str(tmp_path)])
     assert [r["policy"] for r in rows] == ["pd", "dec-continue (d=0.06 m)"]
     assert rows[0]["collision rate"] == 1.0 and rows[1]["success rate"] == 1.0
     for name in ("table.md", "table.csv", "tip_paths.png", "wall_and_height.png"):

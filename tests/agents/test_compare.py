@@ -7,7 +7,17 @@ import pytest
 
 pytest.importorskip("rliable")
 pytest.importorskip("stable_baselines3")
-from agents import compare, training  # noqa: E402
+from agents.algorithms.sb3 import hyperparams, training  # noqa: E402
+from agents.experiments import (  # noqa: E402
+    comparison,
+    conditions,
+    evaluation,
+    registry,
+    report,
+    runs as run_folders,  # noqa: E402
+    statistics,
+)
+from agents.experiments.targets import target_checks  # noqa: E402
 
 KEYS = {"name", "kind", "algorithm", "seeds", "episodes", "success_rate", "collision_rate", "time_iqm",
         "time_ci", "energy_mean", "condition"}
@@ -15,12 +25,12 @@ KEYS = {"name", "kind", "algorithm", "seeds", "episodes", "success_rate", "colli
 
 def test_iqm_and_probability_of_improvement_on_known_scores():
     scores = np.array([[1.0, 1.0], [2.0, 2.0], [3.0, 3.0], [100.0, 100.0]])
-    iqm, (low, high) = compare.iqm_with_ci(scores, reps=500)
+    iqm, (low, high) = statistics.iqm_with_ci(scores, reps=500)
     assert iqm == pytest.approx(2.5)  # the middle half of the 8 scores: 2, 2, 3, 3
     assert low <= iqm <= high
-    faster, _ = compare.probability_faster(np.full((3, 2), 1.0), np.full((1, 2), 2.0), reps=200)
+    faster, _ = statistics.probability_faster(np.full((3, 2), 1.0), np.full((1, 2), 2.0), reps=200)
     assert faster == 1.0
-    tie, _ = compare.probability_faster(np.full((3, 2), 2.0), np.full((1, 2), 2.0), reps=200)
+    tie, _ = statistics.probability_faster(np.full((3, 2), 2.0), np.full((1, 2), 2.0), reps=200)
     assert tie == 0.5
 
 
@@ -31,10 +41,10 @@ def test_the_vectorized_probability_of_improvement_is_rliables():
     for runs_x, runs_y in ((5, 1), (3, 4), (2, 2)):
         x = rng.integers(0, 4, (runs_x, 30)).astype(float)  # few values: ties on purpose
         y = rng.integers(0, 4, (runs_y, 30)).astype(float)
-        assert compare.probability_of_improvement(x, y) == pytest.approx(metrics.probability_of_improvement(x, y),
+        assert statistics.probability_of_improvement(x, y) == pytest.approx(metrics.probability_of_improvement(x, y),
                                                                          abs=1e-12)
     same = rng.uniform(size=(3, 10))
-    assert compare.probability_of_improvement(same, same) == metrics.probability_of_improvement(same, same) == 0.5
+    assert statistics.probability_of_improvement(same, same) == metrics.probability_of_improvement(same, same) == 0.5
 
 
 def test_a_condition_without_draws_runs_its_one_episode_once():
@@ -42,42 +52,41 @@ def test_a_condition_without_draws_runs_its_one_episode_once():
     the same (a deterministic policy, nothing drawn), and every episode runs where they differ."""
     from agents.policies import DecHeuristic
 
-    fixed = compare.make_env(compare.CONDITIONS["c11"], "pd")
+    fixed = conditions.make_env(conditions.CONDITIONS["c11"], "pd")
     policy = DecHeuristic(fixed, "continue", critical_distance=0.07)
-    full, short = (compare.episodes_of(fixed, policy, 4, seed=1000, identical=same) for same in (False, True))
+    full, short = (evaluation.episodes_of(fixed, policy, 4, seed=1000, identical=same) for same in (False, True))
     for key in ("success", "collisions", "reach_time", "energy"):
         assert np.array_equal(full[key], short[key], equal_nan=True), key
-    drawn = compare.make_env(compare.CONDITIONS["random-targets"], "pd")
+    drawn = conditions.make_env(conditions.CONDITIONS["random-targets"], "pd")
     policy = DecHeuristic(drawn, "continue", critical_distance=0.07)
-    runs = compare.episodes_of(drawn, policy, 4, seed=1000, identical=True)
+    runs = evaluation.episodes_of(drawn, policy, 4, seed=1000, identical=True)
     assert len(set(runs["energy"].tolist())) == 4  # other targets: every episode ran
 
 
 def test_comparison_command_writes_every_policy(tmp_path):
     runs = tmp_path / "runs"
-    hyper = training.load_hyperparams("td3")
+    hyper = hyperparams.load_hyperparams("td3")
     hyper.update(n_envs=1, learning_starts=50, buffer_size=500, eval_freq=100, eval_episodes=1, snapshot_freq=100)
     for seed in (0, 1):
         training.train("td3", runs / "Scara-C11-v1" / "pd" / "td3" / f"seed{seed}", seed=seed,
                        hyperparams=hyper, total_timesteps=200)
-    from agents.torch_ppo import Config, train as train_torch_ppo
+    from agents.algorithms.torch_ppo import Config, train as train_torch_ppo
     train_torch_ppo(Config(num_envs=2, num_steps=8, num_minibatches=1, update_epochs=1, total_timesteps=16, seed=3,
                            out=str(runs / "Scara-C11-v1" / "pd" / "torch-ppo" / "seed3")))
     # what is committed (docs/results/runs): the finished runs, model and history only
     published = tmp_path / "published"
-    from agents import baselines
-    assert len(baselines.main(["--algos", "td3", "--seeds", "0", "1", "2", "--runs", str(runs),
-                               "--publish", str(published)])) == 2  # seed 2 never ran
-    baselines.publish(runs / "Scara-C11-v1" / "pd" / "torch-ppo" / "seed3",
+    from agents.cli import run
+    assert len(run(["campaign", "td3", "--seeds", "0", "1", "2", "--runs", str(runs),
+                    "--publish", str(published)])) == 2  # seed 2 never ran
+    run_folders.publish(runs / "Scara-C11-v1" / "pd" / "torch-ppo" / "seed3",
                       published / "Scara-C11-v1" / "pd" / "torch-ppo" / "seed3")
     files = {p.relative_to(published).as_posix() for p in published.rglob("*") if p.is_file()}
     assert "Scara-C11-v1/pd/td3/seed1/eval/evaluations.npz" in files
     assert not any(part in ("tb", "snapshot", "checkpoints") for f in files for part in f.split("/")), files
     with pytest.raises(ValueError, match="not a finished run"):
-        baselines.publish(runs / "Scara-C11-v1" / "pd" / "td3" / "seed2", tmp_path / "nowhere")
-    runs = published
+        run_folders.publish(runs / "Scara-C11-v1" / "pd" / "td3" / "seed2", tmp_path / "nowhere")
     out = tmp_path / "results"
-    entries, traces = compare.compare(runs, ["c11"], episodes=2, verbose=False, bisection_tolerance=0.01,
+    entries, traces = comparison.compare(published, ["c11"], episodes=2, verbose=False, bisection_tolerance=0.01,
                                       shielded=("torch-ppo",))
     names = [e["name"] for e in entries]
     assert names[:2] == ["pd", "pd + shield"] and "optimal" in names
@@ -91,16 +100,16 @@ def test_comparison_command_writes_every_policy(tmp_path):
         assert KEYS <= set(e) and e["condition"] == "c11" and e["episodes"] == 2
         assert e["time_ci"][0] <= e["time_iqm"] <= e["time_ci"][1]
     pd, optimal, td3 = entries[0], entries[names.index("optimal")], entries[names.index("td3")]
-    assert pd["collision_rate"] == 1.0 and pd["time_iqm"] == compare.TIME_LIMIT
+    assert pd["collision_rate"] == 1.0 and pd["time_iqm"] == statistics.TIME_LIMIT
     assert optimal["success_rate"] == 1.0 and optimal["collision_rate"] == 0.0 and optimal["time_iqm"] < 1.25
     heuristic = [e for e in entries if e["kind"] == "heuristic"]
     assert all(e["success_rate"] == 1.0 and e["collision_rate"] == 0.0 for e in heuristic)
     assert td3["seeds"] == [0, 1] and [s["seed"] for s in td3["per_seed"]] == [0, 1]
     assert 0.0 <= td3["probability_faster_than_heuristic"] <= 1.0
-    written = compare.figures(entries, traces, compare.learned_runs(runs), out.mkdir() or out)
+    written = report.comparison_figures(entries, traces, evaluation.learned_runs(published), out.mkdir() or out)
     assert {p.name for p in written} == {"comparison_tip_paths.png", "comparison_time_energy.png",
                                         "comparison_learning_curves.png"}
-    table = compare.markdown(entries)
+    table = report.comparison_markdown(entries)
     assert "| optimal | optimal | voltage |" in table and "seed 1:" in table
     assert table.startswith("#### Targets") and "| optimal reference on the C11 target" in table
     assert "| policy | c11 |\n" in table and "| pd | - (0.00 / 1.00) |\n" in table  # the overview
@@ -109,38 +118,41 @@ def test_comparison_command_writes_every_policy(tmp_path):
 
 
 def test_a_condition_without_a_shipped_optimal_solution_is_compared_without_it(monkeypatch, capsys):
-    import agents.optimal
+    import agents.policies.optimal.policy
 
-    monkeypatch.setattr(agents.optimal, "cached_solution", lambda *args, **kwargs: None)
-    entries, _ = compare.compare(None, ["c11"], episodes=2, verbose=True, bisection_tolerance=0.01)
+    monkeypatch.setattr(agents.policies.optimal.policy, "cached_solution", lambda *args, **kwargs: None)
+    entries, _ = comparison.compare(None, ["c11"], episodes=2, verbose=True, bisection_tolerance=0.01)
     assert [e["kind"] for e in entries] == ["pd", "pd"] + ["heuristic"] * 4  # no solve of minutes inside
-    assert "optimal: no shipped solution (python -m agents.optimal --condition c11" in capsys.readouterr().out
+    assert "optimal: no shipped solution (scara-agents optimal --condition c11" in capsys.readouterr().out
 
 
 @pytest.mark.parametrize("algo", ["torch-ppo-dr", "torch-ppo-residual-random", "torch-ppo-residual-frugal",
                                   "torch-ppo-residual-random-safe-fast", "torch-ppo-residual-fast-rsi",
                                   "torch-ppo-residual-random-replay"])
 def test_the_campaign_trains_the_single_file_ppo_once(tmp_path, algo):
-    from agents import baselines
-
     out = tmp_path / algo / "seed0"
-    baselines.train_run(algo, out, seed=0, total_timesteps=2048)
-    assert baselines.is_finished(out)
+    run_folders.train_run(algo, out, seed=0, total_timesteps=2048)
+    assert run_folders.is_finished(out)
     config = json.loads((out / "config.json").read_text())
-    changed = {name: value for name, value in baselines.TORCH_PPO_VARIANTS[algo].items() if name != "total_timesteps"}
-    assert changed and {name: config[name] for name in changed} == changed
+    from agents.algorithms.torch_ppo import Config
+
+    changed = {name: value for name, value in registry.RUNS[algo].fields.items() if name != "total_timesteps"}
+    recorded = Config.from_dict(config)
+    assert changed and {name: getattr(recorded, name) for name in changed} == changed
     assert config["global_step"] == 2048 and config["seed"] == 0
     summary = (out / "summary.json").read_text()
-    baselines.train_run(algo, out, seed=0, total_timesteps=2048)  # finished: left as it is
+    run_folders.train_run(algo, out, seed=0, total_timesteps=2048)  # finished: left as it is
     assert (out / "summary.json").read_text() == summary
     (out / "summary.json").unlink()  # model.pt is also a checkpoint: without the summary, not finished
-    assert not baselines.is_finished(out)
+    assert not run_folders.is_finished(out)
 
 
 def _entry(condition, kind, algorithm=None, success=1.0, collisions=0.0, time=1.5, energy=70.0, seeds=None,
            train_seconds=600.0):
     e = {"name": algorithm or kind, "kind": kind, "algorithm": algorithm, "condition": condition,
-         "success_rate": success, "collision_rate": collisions, "time_iqm": time, "energy_mean": energy}
+         "success_rate": success, "collision_rate": collisions, "time_iqm": time, "energy_mean": energy,
+         "run": algorithm, "shielded": False,
+         "tags": sorted(registry.RUNS[algorithm].tags) if algorithm in registry.RUNS else []}
     if seeds:
         e["per_seed"] = [{"seed": s, "success_rate": success, "collision_rate": collisions,
                           "train_seconds": train_seconds} for s in seeds]
@@ -154,10 +166,10 @@ def test_target_checks_say_met_or_the_number_reached():
                _entry("c11", "learned", "sac", success=0.5, time=1.20, energy=500.0, seeds=[0, 1], train_seconds=2000),
                _entry("random-targets", "heuristic", time=1.55),
                _entry("random-targets", "learned", "ppo", success=0.98, time=1.40, seeds=[0, 1])]
-    entries += [_entry(c, "learned", "ppo-residual-dr", success=0.80, seeds=[0]) for c in compare.SHIFTS]
-    entries += [_entry(c, "learned", "torch-ppo-dr", success=0.97, seeds=[0]) for c in compare.SHIFTS]
-    entries += [_entry(c, "learned", "ppo", success=1.0, seeds=[0]) for c in compare.SHIFTS]  # not randomized
-    checks = {c["target"].split(":")[0]: c for c in compare.target_checks(entries)}
+    entries += [_entry(c, "learned", "ppo-residual-dr", success=0.80, seeds=[0]) for c in conditions.SHIFTS]
+    entries += [_entry(c, "learned", "torch-ppo-dr", success=0.97, seeds=[0]) for c in conditions.SHIFTS]
+    entries += [_entry(c, "learned", "ppo", success=1.0, seeds=[0]) for c in conditions.SHIFTS]  # not randomized
+    checks = {c["target"].split(":")[0]: c for c in target_checks(entries)}
     assert checks["optimal reference on the C11 target"]["met"] is True
     best = checks["best learned on the C11 target"]
     assert best["met"] is True and best["reached"].startswith("ppo:")  # sac is faster but fails seeds
@@ -167,64 +179,62 @@ def test_target_checks_say_met_or_the_number_reached():
     assert checks["fast and frugal"]["met"] is True
     training_check = checks["each training run <= 30 min on 2 CPU cores"]
     assert training_check["met"] is False and "sac 33.3 min" in training_check["reached"]
-    slow = compare.target_checks([_entry("c11", "optimal", time=1.26)])
+    slow = target_checks([_entry("c11", "optimal", time=1.26)])
     assert slow[0]["met"] is False and "+3.13 %" in slow[0]["reached"]
     assert [c["met"] for c in slow[1:]] == [None] * (len(slow) - 1)
 
 
 def test_a_cached_evaluation_is_reused_only_for_the_same_model_condition_and_episodes(tmp_path, monkeypatch):
-    from agents.torch_ppo import Config, train as train_torch_ppo
+    from agents.algorithms.torch_ppo import Config, train as train_torch_ppo
 
     run = tmp_path / "seed0"
     train_torch_ppo(Config(num_envs=2, num_steps=8, num_minibatches=1, update_epochs=1, total_timesteps=16,
                            out=str(run)))
-    c11, load = compare.CONDITIONS["c11"], compare.CONDITIONS["load-x2"]
-    env = compare.make_env(c11, "pd")
+    c11, load = conditions.CONDITIONS["c11"], conditions.CONDITIONS["load-x2"]
+    env = conditions.make_env(c11, "pd")
     cache = tmp_path / "cache"
-    first = compare.learned_episodes(env, run, c11, "pd", 3, 1000, True, cache)
+    first = evaluation.learned_episodes(env, run, c11, "pd", 3, 1000, True, cache)
     assert len(list(cache.glob("*.pkl"))) == 1
 
     def must_not_run(*args, **kwargs):
         raise AssertionError("evaluated again")
 
-    monkeypatch.setattr(compare, "episodes_of", must_not_run)
-    again = compare.learned_episodes(env, run, c11, "pd", 3, 1000, True, cache)
+    monkeypatch.setattr(evaluation, "episodes_of", must_not_run)
+    again = evaluation.learned_episodes(env, run, c11, "pd", 3, 1000, True, cache)
     for key in ("success", "collisions", "reach_time", "energy"):
         assert np.array_equal(first[key], again[key], equal_nan=True), key
-    key = compare.evaluation_key(run, c11, "pd", 3, 1000)
-    assert key != compare.evaluation_key(run, load, "pd", 3, 1000)
-    assert key != compare.evaluation_key(run, c11, "pd", 4, 1000)
-    assert key != compare.evaluation_key(run, c11, "pd", 3, 1001)
-    assert key != compare.evaluation_key(run, c11, "pd", 3, 1000, shield=True)
+    key = evaluation.evaluation_key(run, c11, "pd", 3, 1000)
+    assert key != evaluation.evaluation_key(run, load, "pd", 3, 1000)
+    assert key != evaluation.evaluation_key(run, c11, "pd", 4, 1000)
+    assert key != evaluation.evaluation_key(run, c11, "pd", 3, 1001)
+    assert key != evaluation.evaluation_key(run, c11, "pd", 3, 1000, shield=True)
     model = (run / "model.pt").read_bytes()
     (run / "model.pt").write_bytes(model + b"\0")  # another model: not the cached one
     with pytest.raises(AssertionError, match="evaluated again"):
-        compare.learned_episodes(env, run, c11, "pd", 3, 1000, True, cache)
+        evaluation.learned_episodes(env, run, c11, "pd", 3, 1000, True, cache)
 
 
 def test_conditions_compared_in_parallel_give_the_sequential_entries():
     kwargs = dict(episodes=2, verbose=False, bisection_tolerance=0.01, include_optimal=False)
-    sequential, _ = compare.compare(None, ["c11", "wall-closer"], **kwargs)
-    parallel, traces = compare.compare_in_parallel(None, ["c11", "wall-closer"], 2, **kwargs)
+    sequential, _ = comparison.compare(None, ["c11", "wall-closer"], **kwargs)
+    parallel, traces = comparison.compare_in_parallel(None, ["c11", "wall-closer"], 2, **kwargs)
     assert parallel == sequential and set(traces) == {"c11", "wall-closer"}
 
 
 def test_a_fine_tuned_variant_starts_from_its_base_run_and_counts_its_training_time(tmp_path):
-    from agents import baselines
-
     algo = "torch-ppo-residual-random-safe-fast"
-    out = baselines.run_dir(tmp_path, "Scara-C11-v1", "pd", algo, 3)
-    baselines.train_run(algo, out, seed=3, total_timesteps=2048)
-    base = baselines.run_dir(tmp_path, "Scara-C11-v1", "pd", baselines.FINE_TUNES[algo], 3)
-    assert baselines.is_finished(base) and baselines.is_finished(out)
+    out = run_folders.run_dir(tmp_path, "Scara-C11-v1", "pd", algo, 3)
+    run_folders.train_run(algo, out, seed=3, total_timesteps=2048)
+    base = run_folders.run_dir(tmp_path, "Scara-C11-v1", "pd", registry.RUNS[algo].base, 3)
+    assert run_folders.is_finished(base) and run_folders.is_finished(out)
     config, base_config = (json.loads((run / "config.json").read_text()) for run in (out, base))
     assert config["init_from"] == str(base) and base_config["seed"] == config["seed"] == 3
     assert base_config["reward_weights"] != config["reward_weights"]
     assert config["base_train_seconds"] == base_config["train_seconds"] > 0
-    assert compare.training_seconds(config) == config["train_seconds"] + base_config["train_seconds"]
-    assert compare.training_seconds(base_config) == base_config["train_seconds"]
+    assert statistics.training_seconds(config) == config["train_seconds"] + base_config["train_seconds"]
+    assert statistics.training_seconds(base_config) == base_config["train_seconds"]
 
 
 def test_rates_keep_two_decimals_unless_that_hides_an_episode():
-    assert [compare._rate(r) for r in (1.0, 0.0, 0.57, 0.998, 0.002, 2 / 3)] == \
+    assert [statistics.rate_text(r) for r in (1.0, 0.0, 0.57, 0.998, 0.002, 2 / 3)] == \
         ["1.00", "0.00", "0.57", "0.998", "0.002", "0.667"]

@@ -1,4 +1,4 @@
-"""agents.her: the HER buffer that keeps only the info entries compute_reward reads."""
+"""agents.algorithms.sb3.her: the HER buffer that keeps only the info entries compute_reward reads."""
 
 import gymnasium as gym
 import numpy as np
@@ -9,7 +9,7 @@ from stable_baselines3 import HerReplayBuffer  # noqa: E402
 from stable_baselines3.common.vec_env import DummyVecEnv  # noqa: E402
 
 import scara_gym  # noqa: E402,F401
-from agents.her import KeptInfoHerReplayBuffer  # noqa: E402
+from agents.algorithms.sb3.her import KeptInfoHerReplayBuffer  # noqa: E402
 
 
 def _filled(buffer_class, steps=400, **kwargs):

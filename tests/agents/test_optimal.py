@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 
 import scara_gym  # noqa: F401
-from agents.optimal import SOLUTIONS, OptimalPolicy, cached_solution, reference_snapshots, replay, replaying
 from agents.policies import run_episode
+from agents.policies.optimal import SOLUTIONS, OptimalPolicy, cached_solution, reference_snapshots, replay, replaying
 from scara_gym.model import records as R
 from scara_gym.model.dynamics import derivative
 from scara_gym.model.params import DEFAULT_PARAMS
@@ -18,7 +18,7 @@ SPEC_BOUND = 1.2217  # s, the spec's minimum time under the environment's rules 
 
 def test_casadi_model_equals_the_package_derivative():
     pytest.importorskip("casadi")
-    from agents.optimal import casadi_model
+    from agents.policies.optimal.model import casadi_model
 
     f, tip_x = casadi_model(DEFAULT_PARAMS)
     p = DEFAULT_PARAMS.to_record()
@@ -92,7 +92,7 @@ def test_the_wider_wall_margin_reference_keeps_its_distance():
     """The C11 solution with an 8 mm wall margin (demo resets' reference): below h_obs its tip
     stays 8 mm or more from the wall plane at every recorded instant, a little slower than the
     1 mm one; an unknown margin is not made up."""
-    from agents.optimal import main
+    from agents.cli import run
 
     data = cached_solution(wall_margin=0.008)
     assert data is not None and data["command"].endswith("--wall-margin 0.008")
@@ -107,7 +107,7 @@ def test_the_wider_wall_margin_reference_keeps_its_distance():
     with pytest.raises(LookupError, match="wall margin 0.005 m"):
         reference_snapshots(wall_margin=0.005)
     with pytest.raises(SystemExit):
-        main(["--wall-margin", "0.02"])
+        run(["optimal", "--wall-margin", "0.02"])
 
 
 def test_shipped_solution_file_is_complete():
@@ -119,10 +119,10 @@ def test_shipped_solution_file_is_complete():
 
 
 def test_every_shipped_solution_replays_in_its_own_condition():
-    """The C11 target under the comparison's parameter shifts (agents.compare.CONDITIONS):
+    """The C11 target under the comparison's parameter shifts (agents.experiments.conditions.CONDITIONS):
     each shipped solution, replayed with its condition's parameters, succeeds without a
     collision at its recorded time, above that condition's free bound."""
-    from agents.compare import CONDITIONS
+    from agents.experiments.conditions import CONDITIONS
     from scara_gym import DEFAULT_PARAMS
 
     for path in sorted(SOLUTIONS.glob("*.json")):
@@ -140,7 +140,7 @@ def test_every_shipped_solution_replays_in_its_own_condition():
 def test_free_problem_reproduces_the_spec_bound():
     """The continuous-time problem solved from scratch (the heuristic's path as the guess)."""
     pytest.importorskip("casadi")
-    from agents.optimal import CollocationConfig, minimum_time
+    from agents.policies.optimal import CollocationConfig, minimum_time
 
     solution = minimum_time("free", config=CollocationConfig(wall_margin=0.0, band_margin=0.0))
     assert solution.status == "solved"

@@ -1,4 +1,4 @@
-"""agents.shield: the model-predictive shield keeps any policy off the wall, and leaves a policy
+"""scara_gym.wrappers.shield: the model-predictive shield keeps any policy off the wall, and leaves a policy
 that stays safe alone."""
 
 import gymnasium as gym
@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 
 import scara_gym  # noqa: F401
-from agents.evaluate import make_policy
+from agents.experiments.evaluation import make_policy
 from agents.policies import DecHeuristic, PDPolicy, run_episode
-from agents.shield import Shield
+from scara_gym.wrappers import Shield
 
 
 class NoisyPD(PDPolicy):

@@ -1,4 +1,4 @@
-"""agents.sweep: seeds x grids on a local Ray runtime, results in the comparison's format."""
+"""agents.experiments.sweep: seeds x grids on a local Ray runtime, results in the comparison's format."""
 
 import json
 
@@ -7,7 +7,7 @@ import pytest
 
 pytest.importorskip("ray")
 
-from agents import sweep  # noqa: E402
+from agents.experiments import sweep  # noqa: E402
 
 
 def test_grid_parsing_and_tags():
@@ -53,7 +53,7 @@ def test_unknown_grid_names_are_refused_before_any_trial(tmp_path):
 def test_a_run_trained_for_a_looser_goal_is_evaluated_in_its_task_and_the_benchmarks(tmp_path):
     """The HER block trains Scara-C11-Goal-v0 with goal_tolerance 0.05: its trial evaluates the
     run there and at the benchmark's own goal test, and the sweep lists both."""
-    from agents.baselines import hyperparams_of
+    from agents.experiments.runs import hyperparams_of
 
     assert sweep.task_kwargs(hyperparams_of("sac", "Scara-C11-Goal-v0")) == {"goal_tolerance": 0.05}
     assert sweep.task_kwargs(hyperparams_of("ppo", "Scara-C11-v1")) == {}
@@ -63,7 +63,7 @@ def test_a_run_trained_for_a_looser_goal_is_evaluated_in_its_task_and_the_benchm
     assert set(result) == {"train_seconds", *sweep.EPISODE_ARRAYS, *("benchmark_" + k for k in sweep.EPISODE_ARRAYS)}
     assert result["success"].shape == result["benchmark_success"].shape == (2,)
     with pytest.raises(ValueError, match="task arguments must be among"):
-        from agents.compare import CONDITIONS, make_env
+        from agents.experiments.conditions import CONDITIONS, make_env
         make_env(CONDITIONS["c11"], "pd", "Scara-C11-v1", reward_type="dense")
 
 
@@ -76,7 +76,20 @@ def test_the_command_line_passes_its_concurrency_limit_to_ray(tmp_path, monkeypa
         return []
 
     monkeypatch.setattr(sweep, "run_sweep", fake_sweep)
-    sweep.main(["--algo", "ppo", "--seeds", "0", "--out", str(tmp_path), "--max-concurrent", "1"])
+    from agents.cli import run
+
+    run(["sweep", "--run", "ppo", "--seeds", "0", "--out", str(tmp_path), "--max-concurrent", "1"])
     assert seen["max_concurrent"] == 1
-    sweep.main(["--algo", "ppo", "--seeds", "0", "--out", str(tmp_path)])
+    run(["sweep", "--run", "ppo", "--seeds", "0", "--out", str(tmp_path)])
     assert seen["max_concurrent"] is None
+
+
+def test_a_torch_ppo_trial_trains_and_is_evaluated(tmp_path):
+    """Every registered run can be swept: a torch PPO grid point names Config fields."""
+    tiny = {"num_envs": 2, "num_steps": 8, "num_minibatches": 1, "update_epochs": 1, "ent_coef": 0.01}
+    result = sweep.train_and_evaluate("torch-ppo", "Scara-C11-v1", "pd", 0, tiny, tmp_path / "run", "c11",
+                                      episodes=2, total_timesteps=16)
+    assert result["success"].shape == (2,) and result["train_seconds"] > 0
+    assert json.loads((tmp_path / "run" / "config.json").read_text())["ent_coef"] == 0.01
+    with pytest.raises(ValueError, match=r"--grid names \['ent_cof'\]"):
+        sweep.point_hyperparams("torch-ppo", "Scara-C11-v1", "pd", {"ent_cof": 0.0})

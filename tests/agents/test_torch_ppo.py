@@ -1,4 +1,4 @@
-"""agents.torch_ppo: the single-file PPO trains, checkpoints, resumes and is evaluated."""
+"""agents.algorithms.torch_ppo: the single-file PPO trains, checkpoints, resumes and is evaluated."""
 
 import dataclasses
 import json
@@ -9,11 +9,22 @@ import pytest
 import torch
 
 import scara_gym  # noqa: F401
-from agents.evaluate import make_policy
+from agents.algorithms.torch_ppo import (
+    Adam,
+    Agent,
+    Config,
+    RunningMeanStd,
+    make_env,
+    ppo_gradients,
+    ppo_loss,
+    residual_mapping,
+    train,
+)
+from agents.algorithms.torch_ppo_config import parse_reward_weights
+from agents.algorithms.torch_ppo_hooks import DemoCloning, DemoResets, ShieldedActions, TargetReplay
+from agents.cli import run
+from agents.experiments.evaluation import make_policy
 from agents.policies import run_episode
-from agents.torch_ppo import (Adam, Agent, Config, DemoResets, RunningMeanStd, TargetReplay, main, make_env,
-                              ppo_gradients,
-                              ppo_loss, residual_mapping, reward_weights, train)
 
 
 def test_running_mean_std_matches_the_batch_statistics():
@@ -94,15 +105,15 @@ def test_adam_takes_torch_optims_steps_and_resumes():
 
 
 def test_reward_weights_reach_the_env_and_bad_ones_are_named():
-    assert reward_weights("") == {}
-    assert reward_weights("energy=0.05, time=20") == {"energy": 0.05, "time": 20.0}
-    envs = make_env(Config(num_envs=2, reward_weights="energy=0.05,time=20"))
+    assert parse_reward_weights("") == {}
+    assert parse_reward_weights("energy=0.05, time=20") == {"energy": 0.05, "time": 20.0}
+    envs = make_env(Config(num_envs=2, reward_weights={"energy": 0.05, "time": 20.0}))
     weights = envs.unwrapped.task.reward_weights
     assert (weights.energy, weights.time, weights.collision) == (0.05, 20.0, 50.0)  # the rest: the env's
     with pytest.raises(ValueError, match="reward_weights: expected name=number"):
-        reward_weights("energy")
+        parse_reward_weights("energy")
     with pytest.raises(ValueError, match="reward_weights.*energi"):
-        make_env(Config(num_envs=2, reward_weights="energi=1"))
+        make_env(Config(num_envs=2, reward_weights={"energi": 1.0}))
 
 
 @pytest.mark.slow
@@ -114,7 +125,7 @@ def test_a_tiny_run_trains_resumes_and_is_evaluated(tmp_path):
     assert first["global_step"] == 128
     before = torch.load(out / "model.pt", weights_only=False)["state_dict"]
     # resume: two more updates from the checkpoint, not from scratch
-    main(["--num-envs", "4", "--num-steps", "16", "--num-minibatches", "2", "--update-epochs", "2",
+    run(["torch-ppo", "--num-envs", "4", "--num-steps", "16", "--num-minibatches", "2", "--update-epochs", "2",
           "--total-timesteps", "256", "--checkpoint-every", "1", "--out", str(out), "--resume"])
     summary = json.loads((out / "summary.json").read_text())
     assert summary["global_step"] == 256
@@ -135,7 +146,7 @@ def test_a_run_starts_from_another_runs_policy_with_init_from(tmp_path):
     train(Config(**tiny, out=str(source)))
     # with a zero learning rate the fine-tuned weights are the source's (its own observations
     # move only the normalizer, a buffer)
-    train(Config(**tiny, learning_rate=0.0, seed=5, init_from=str(source), reward_weights="energy=0.05",
+    train(Config(**tiny, learning_rate=0.0, seed=5, init_from=str(source), reward_weights={"energy": 0.05},
                  out=str(tuned)))
     saved = {run: torch.load(run / "model.pt", weights_only=False)["state_dict"] for run in (source, tuned)}
     parameters = [name for name, _ in Agent(18, 3, 64, 10.0).named_parameters()]
@@ -151,12 +162,12 @@ def test_a_run_starts_from_another_runs_policy_with_init_from(tmp_path):
 
 
 def test_the_residual_set_point_option_acts_around_the_target_in_training_and_evaluation(tmp_path):
-    from agents.residual import ResidualSetpoint
-    from agents.torch_ppo import TorchPPOPolicy
+    from agents.algorithms.torch_ppo import TorchPPOPolicy
+    from scara_gym.wrappers import ResidualSetpoint
 
     out = tmp_path / "run"
     train(Config(num_envs=2, num_steps=8, num_minibatches=1, update_epochs=1, total_timesteps=16, randomize_target=True,
-                 residual_scale="2.5,2.5,0.05", residual_deadzone=0.5, out=str(out)))
+                 residual_scale=(2.5, 2.5, 0.05), residual_deadzone=0.5, out=str(out)))
     env = gym.make("Scara-C11-v1", randomize_target=True)
     obs, info = env.reset(seed=7)
     policy = TorchPPOPolicy(env, out)
@@ -169,9 +180,12 @@ def test_the_residual_set_point_option_acts_around_the_target_in_training_and_ev
     inside = mapping(obs, np.array([0.3, -0.49, 0.0]))[0]
     np.testing.assert_allclose(task.setpoint_center + task.setpoint_half * inside, info["target"], atol=1e-6)
     with pytest.raises(ValueError, match="residual_scale must be 3 finite numbers"):
-        residual_mapping(Config(residual_scale="1,2"), task)
+        residual_mapping(Config(residual_scale=(1.0, 2.0)), task)
     with pytest.raises(ValueError, match="residual_scale: expected 3 numbers"):
-        train(Config(num_envs=2, num_steps=8, total_timesteps=16, residual_scale="a,b,c", out=str(tmp_path / "bad")))
+        Config.from_dict({"residual_scale": "a,b,c"})
+    legacy = Config.from_dict({"residual_scale": "2.5,2.5,0.05", "reward_weights": "time=20", "init_from": ""})
+    assert legacy.residual_scale == (2.5, 2.5, 0.05) and legacy.reward_weights == {"time": 20.0}
+    assert legacy.init_from is None
 
 
 def test_demo_resets_start_episodes_on_the_reference_path_and_training_uses_them(tmp_path):
@@ -194,7 +208,7 @@ def test_demo_resets_start_episodes_on_the_reference_path_and_training_uses_them
         DemoResets(envs, Config(demo_resets=0.5, randomize_target=True))
     out = tmp_path / "rsi"
     train(Config(num_envs=2, num_steps=8, num_minibatches=1, update_epochs=1, total_timesteps=32, demo_resets=0.5,
-                 residual_scale="2.5,2.5,0.05", residual_deadzone=0.5, out=str(out)))
+                 residual_scale=(2.5, 2.5, 0.05), residual_deadzone=0.5, out=str(out)))
     assert json.loads((out / "config.json").read_text())["demo_resets"] == 0.5
 
 
@@ -237,8 +251,8 @@ def test_target_replay_gives_new_episodes_the_failed_targets_until_they_succeed(
 def test_a_shielded_run_applies_the_shields_actions_and_acts_behind_it_in_evaluation(tmp_path, monkeypatch):
     """PD drives the C11 arm into the wall by step ~40; the residual agent starts as PD (its
     outputs inside the dead zone), so a shielded run must be overruled there, and never collide."""
-    import agents.torch_ppo as torch_ppo
-    from agents.shield import Shield
+    import agents.algorithms.torch_ppo as torch_ppo
+    from scara_gym.wrappers import Shield
 
     calls, replaced, collisions = [0], [0], [0]
     filter_ = Shield.filter
@@ -264,7 +278,7 @@ def test_a_shielded_run_applies_the_shields_actions_and_acts_behind_it_in_evalua
     monkeypatch.setattr(torch_ppo, "make_env", counting_env)
     out = tmp_path / "run"
     train(Config(num_envs=2, num_steps=64, num_minibatches=1, update_epochs=1, total_timesteps=128,
-                 residual_scale="2.5,2.5,0.05", residual_deadzone=0.5, shield=True, out=str(out)))
+                 residual_scale=(2.5, 2.5, 0.05), residual_deadzone=0.5, shield=True, out=str(out)))
     assert calls[0] == 128 and replaced[0] > 0 and collisions[0] == 0
     env = gym.make("Scara-C11-v1")
     policy = make_policy(f"torchppo:{out}", env)
@@ -272,12 +286,12 @@ def test_a_shielded_run_applies_the_shields_actions_and_acts_behind_it_in_evalua
     result = run_episode(env, policy, seed=0)
     assert result["collisions"] == 0
     with pytest.raises(ValueError, match="shield: the shield's model runs on the CPU"):
-        torch_ppo.make_shield(Config(shield=True, device="cuda"))
+        ShieldedActions(Config(shield=True, device="cuda"))
 
 
 def test_the_residual_maps_inverse_replays_the_optimal_reference():
-    from agents.optimal import reference_demonstration, replaying
-    from agents.residual import ResidualSetpoint
+    from agents.policies.optimal import reference_demonstration, replaying
+    from scara_gym.wrappers import ResidualSetpoint
 
     observations, actions = reference_demonstration(wall_margin=0.008)
     env = gym.make("Scara-C11-v1", control_mode="voltage")
@@ -303,9 +317,7 @@ def test_the_residual_maps_inverse_replays_the_optimal_reference():
 
 
 def test_demo_cloning_starts_the_policy_on_the_reference_and_checks_its_arguments(tmp_path):
-    from agents.torch_ppo import DemoCloning
-
-    config = Config(control_mode="voltage", residual_scale="2.5,2.5,0.05", residual_deadzone=0.5, demo_bc=1.0,
+    config = Config(control_mode="voltage", residual_scale=(2.5, 2.5, 0.05), residual_deadzone=0.5, demo_bc=1.0,
                     demo_bc_decay=0.5, demo_bc_pretrain=300, demo_wall_margin=0.008, init_log_std=-1.0,
                     num_envs=2, num_steps=8, num_minibatches=1, update_epochs=1, total_timesteps=32,
                     out=str(tmp_path / "run"))
@@ -321,7 +333,7 @@ def test_demo_cloning_starts_the_policy_on_the_reference_and_checks_its_argument
     saved = torch.load(tmp_path / "run" / "model.pt", weights_only=False)["state_dict"]
     assert saved["actor_logstd"].max() < -0.9  # init_log_std, moved by two small updates at most
     for bad, match in ((dict(demo_bc=-1.0), "demo_bc must be >= 0"), (dict(demo_bc_decay=0.0), "demo_bc_decay"),
-                       (dict(control_mode="pd"), "control_mode='voltage'"), (dict(residual_scale=""), "residual_scale"),
+                       (dict(control_mode="pd"), "control_mode='voltage'"), (dict(residual_scale=None), "residual_scale"),
                        (dict(randomize_target=True), "randomize_target")):
         wrong = Config(**{**dataclasses.asdict(config), **bad})
         with pytest.raises(ValueError, match=match):

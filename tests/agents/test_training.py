@@ -1,4 +1,4 @@
-"""Resumable SB3 training (agents.training) and the hyperparameter files of the baselines."""
+"""Resumable SB3 training (agents.algorithms.sb3.training) and the hyperparameter files of the baselines."""
 
 import json
 
@@ -9,14 +9,16 @@ import pytest
 import scara_gym  # noqa: F401
 
 pytest.importorskip("stable_baselines3")
-from agents import training  # noqa: E402
+from agents.algorithms.sb3 import training  # noqa: E402
+from agents.algorithms.sb3.hyperparams import load_hyperparams  # noqa: E402
+from agents.algorithms.sb3.policy import SB3Policy  # noqa: E402
 from agents.policies import run_episode  # noqa: E402
 
 
 @pytest.mark.parametrize("algo", training.ALGORITHMS)
 @pytest.mark.parametrize("control_mode", ["pd", "voltage"])
 def test_every_hyperparameter_block_builds_its_algorithm(algo, control_mode):
-    hyper = training.load_hyperparams(algo, "Scara-C11-v1", control_mode)
+    hyper = load_hyperparams(algo, "Scara-C11-v1", control_mode)
     assert hyper.get("env_kwargs", {}) == {}  # the standard baselines: the env as users get it
     train_env, eval_env = training.make_envs("Scara-C11-v1", {"control_mode": control_mode},
                                              {**hyper, "n_envs": 4}, seed=0)
@@ -24,11 +26,11 @@ def test_every_hyperparameter_block_builds_its_algorithm(algo, control_mode):
                                            **training.algorithm_kwargs(algo, hyper, 3))
     assert model.gamma == hyper["gamma"]
     with pytest.raises(KeyError, match="no sac hyperparameters"):
-        training.load_hyperparams("sac", "Scara-C11-v0", control_mode)
+        load_hyperparams("sac", "Scara-C11-v0", control_mode)
 
 
 def _tiny(algo):
-    hyper = training.load_hyperparams(algo)
+    hyper = load_hyperparams(algo)
     hyper.update(n_envs=2, eval_freq=100, eval_episodes=1, snapshot_freq=100)
     if algo == "ppo":
         hyper.update(n_steps=50, batch_size=50, n_epochs=1)
@@ -69,7 +71,7 @@ def test_an_interrupted_run_resumes_from_its_snapshot(algo, tmp_path, monkeypatc
     assert np.all(np.diff(steps) > 0) and steps[0] <= stopped_at < steps[-1]  # one curve across the break
     assert history["results"].shape == (len(steps), 1)
     env = gym.make("Scara-C11-v1")
-    policy = training.SB3Policy(env, out)
+    policy = SB3Policy(env, out)
     assert run_episode(env, policy, seed=0)["steps"] >= 1
     assert training.train(algo, out) == out.resolve()  # finished: nothing more to do
 
@@ -79,32 +81,30 @@ def test_an_interrupted_run_resumes_from_its_snapshot(algo, tmp_path, monkeypatc
     ("frugal", {"reward_weights": {"time": 20.0, "collision": 100.0, "success": 50.0, "energy": 0.05}}),
 ])
 def test_the_engineered_agents_variants_train_on_their_environment(variant, expected, tmp_path):
-    from agents import ppo
-
-    hyper = ppo.load_hyperparams("Scara-C11-v1", "pd", variant=variant)
+    hyper = load_hyperparams("ppo-residual", "Scara-C11-v1", "pd", variant=variant)
     for key, value in expected.items():
         assert hyper["env_kwargs"][key] == value
     hyper.update(n_envs=2, n_steps=50, batch_size=50, n_epochs=1, eval_freq=100, eval_episodes=1,
                  snapshot_freq=100)
-    out = ppo.train("pd", seed=0, total_timesteps=100, out=tmp_path / variant, hyperparams=hyper,
-                    progress_bar=False, env_id="Scara-C11-v1", variant=variant)
+    out = training.train_residual_ppo("pd", seed=0, total_timesteps=100, out=tmp_path / variant, hyperparams=hyper,
+                                      progress_bar=False, env_id="Scara-C11-v1", variant=variant)
     config = json.loads((out / "config.json").read_text())
     for key, value in expected.items():
         assert config["env_kwargs"][key] == value
     env = gym.make("Scara-C11-v1")
-    assert run_episode(env, training.SB3Policy(env, out), seed=0)["steps"] >= 1
+    assert run_episode(env, SB3Policy(env, out), seed=0)["steps"] >= 1
     with pytest.raises(ValueError, match="variant must be None or one of"):
-        ppo.train("pd", out=tmp_path / "x", variant="fast")
+        training.train_residual_ppo("pd", out=tmp_path / "x", variant="fast")
 
 
 def test_sac_with_her_trains_on_the_goal_env_resumes_and_is_evaluated(tmp_path):
     """A short HER run on Scara-C11-Goal-v0: relabeled rewards come from the env's
-    compute_reward; the saved model reloads with its HER buffer; agents.evaluate runs it."""
+    compute_reward; the saved model reloads with its HER buffer; the evaluation runs it."""
     from stable_baselines3 import HerReplayBuffer
 
-    from agents.evaluate import evaluate
+    from agents.experiments.evaluation import evaluate
 
-    hyper = training.load_hyperparams("sac", "Scara-C11-Goal-v0", "pd")
+    hyper = load_hyperparams("sac", "Scara-C11-Goal-v0", "pd")
     assert hyper["replay_buffer_class"] == "HerReplayBuffer"
     # HER samples only finished episodes: learning starts after the first (at most 300 steps)
     hyper.update(learning_starts=310, eval_freq=400, eval_episodes=1, snapshot_freq=400, buffer_size=2000)

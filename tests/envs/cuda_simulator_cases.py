@@ -5,12 +5,11 @@ in a pytest subprocess with ``NUMBA_ENABLE_CUDASIM=1``, which numba reads at imp
 simulator the kernels call the same CPU-compiled functions, so everything is bit for bit.
 """
 
+import gymnasium as gym
 import numba
 import numpy as np
 import pytest
 import torch
-
-import gymnasium as gym
 
 import scara_gym  # noqa: F401
 from scara_gym.envs.cuda_vector import ScaraCudaVectorEnv
@@ -124,7 +123,7 @@ def test_unsupported_options_and_order_are_named():
 
 
 def test_the_torch_ppo_trains_on_the_cuda_env(tmp_path):
-    from agents.torch_ppo import Config, train
+    from agents.algorithms.torch_ppo import Config, train
 
     summary = train(Config(device="cuda", num_envs=4, num_steps=8, num_minibatches=2, update_epochs=1,
                            total_timesteps=64, checkpoint_every=1, out=str(tmp_path / "run")))

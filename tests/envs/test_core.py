@@ -6,7 +6,13 @@ import numpy as np
 import pytest
 
 from scara_gym.envs.core import (
-    N_OBS, OBSERVATION, OUTCOME, REWARD_TERMS, TASK, start_robot, step_robot,
+    N_OBS,
+    OBSERVATION,
+    OUTCOME,
+    REWARD_TERMS,
+    TASK,
+    start_robot,
+    step_robot,
 )
 from scara_gym.envs.task import OBSERVATION_LAYOUT, OBSERVATION_NAMES, ScaraTask
 from scara_gym.model import records as R

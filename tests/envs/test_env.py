@@ -2,9 +2,9 @@
 
 import ast
 import inspect
-import os
 import itertools
 import math
+import os
 import pickle
 import re
 import warnings
@@ -15,9 +15,9 @@ import pytest
 from gymnasium.utils.env_checker import check_env
 
 import scara_gym  # noqa: F401  (registers the environment)
+from scara_gym.benchmark.tasks import sample_point_to_point
 from scara_gym.envs import ParameterRanges, ScaraEnv
 from scara_gym.envs.variants import VARIANT_CLASSES
-from scara_gym.benchmark.tasks import sample_point_to_point
 from scara_gym.model.simulator import SimulationError, Simulator, start_state
 
 C11_TARGET = np.array([2.0, 2.0, 0.3])
@@ -220,7 +220,7 @@ def test_a_restored_snapshot_goes_on_as_the_episode_it_was_taken_from(control_mo
     copy.reset(seed=1)
     copy.unwrapped.task.restore(0, snapshot)
     assert np.array_equal(copy.unwrapped.task.obs[0], source.unwrapped.task.obs[0])
-    for k, a in enumerate(actions[37:], start=38):
+    for k, a in enumerate(actions[37:], start=38):  # noqa: B007  (the step it ends on is kept)
         left, right = source.step(a), copy.step(a)
         assert all(np.array_equal(x, y) for x, y in zip(left[:4], right[:4]))
         assert left[4].keys() == right[4].keys()

@@ -10,8 +10,7 @@ integration runs on a fixed sample in tests/benchmark/test_accuracy.py.
 import math
 
 import numpy as np
-from hypothesis import HealthCheck, assume, event, given, settings
-from hypothesis import strategies as st
+from hypothesis import HealthCheck, assume, event, given, settings, strategies as st
 
 from scara_gym.envs import REWARD_TERMS, ScaraEnv
 from scara_gym.envs.task import JOINT_HIGH, JOINT_LOW, TARGET_HIGH, TARGET_LOW

@@ -12,8 +12,7 @@ from gymnasium.utils.env_checker import check_env
 
 import scara_gym  # noqa: F401
 from scara_gym import DEFAULT_PARAMS
-from scara_gym.envs import OBSERVATION_LAYOUT, ScaraEnv
-from scara_gym.envs import randomization
+from scara_gym.envs import OBSERVATION_LAYOUT, ScaraEnv, randomization
 from scara_gym.envs.randomization import PRESETS, ParameterRanges, leaf_value
 from scara_gym.envs.task import draw_target
 from scara_gym.model.dynamics import tip_position

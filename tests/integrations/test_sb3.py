@@ -7,6 +7,7 @@ import pytest
 def test_ppo_learns_on_the_native_vector_env_through_the_adapter():
     pytest.importorskip("stable_baselines3")
     from stable_baselines3 import PPO
+
     from scara_gym.integrations.sb3 import SB3VecEnv
 
     venv = SB3VecEnv(num_envs=8, control_mode="pd", max_episode_steps=50)

@@ -9,9 +9,19 @@ from scipy.integrate import solve_ivp
 from scara_gym.benchmark.tasks import sample_point_to_point
 from scara_gym.model import records as R
 from scara_gym.model.dynamics import (
-    accelerations, accelerations_explicit, accelerations_implicit, bias_vector, derivative,
-    determinant, free_current_rate, joint_torque, kinetic_energy, mass_matrix, pd_voltage,
-    tip_position, voltage_limit,
+    accelerations,
+    accelerations_explicit,
+    accelerations_implicit,
+    bias_vector,
+    derivative,
+    determinant,
+    free_current_rate,
+    joint_torque,
+    kinetic_energy,
+    mass_matrix,
+    pd_voltage,
+    tip_position,
+    voltage_limit,
 )
 from scara_gym.model.params import DEFAULT_PARAMS
 

@@ -1,5 +1,5 @@
-"""The engineered agents' action map: a residual set-point around the target (numpy only, so
-that SB3's agents.ppo and the single-file agents.torch_ppo share it).
+"""A residual set-point around the target: the action map of the engineered agents (numpy
+only, so that any agent, SB3's or a single-file torch one, acts through the same map).
 
 The agent's output r in [-1, 1]^3 becomes the set-point  target + residual_scale * deadzone(r),
 deadzone(r) = sign(r) max(|r| - z, 0) / (1 - z), with the target read from the observation
@@ -12,10 +12,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from scara_gym.envs import OBSERVATION_LAYOUT, ScaraTask
+from scara_gym.envs.task import OBSERVATION_LAYOUT, ScaraTask
 
 Q, TARGET_ERROR = OBSERVATION_LAYOUT["q"], OBSERVATION_LAYOUT["target_error"]
-RATES, CRITICAL = OBSERVATION_LAYOUT["rate"], OBSERVATION_LAYOUT["critical"]
 
 
 class ResidualSetpoint:
@@ -37,9 +36,7 @@ class ResidualSetpoint:
         target = obs[:, Q] + obs[:, TARGET_ERROR]
         shaped = np.sign(r) * np.maximum(np.abs(r) - self.deadzone, 0.0) / (1.0 - self.deadzone)
         setpoint = target + self.scale * shaped
-        if self.task.control_mode == "pd":
-            return np.clip((setpoint - self.task.setpoint_center) / self.task.setpoint_half, -1.0, 1.0)
-        return self.task.pd_action(obs, setpoint)
+        return self.task.setpoint_action(obs, setpoint)
 
     def agent_actions(self, obs: np.ndarray, env_actions: np.ndarray, saturation_margin: float = 0.2) -> np.ndarray:
         """Outputs r in [-1, 1] that this map turns into (about) the given environment actions on
@@ -53,10 +50,7 @@ class ResidualSetpoint:
         if self.task.control_mode == "pd":
             setpoint = self.task.action_to_setpoint(env_actions)
         else:
-            p = self.task.robot_params[0]
-            limit = np.where(obs[:, CRITICAL, None] > 0.5, p["wide_voltage_limit"], p["voltage_limit"])
-            boost = np.where(np.abs(env_actions) >= 0.999, 1.0 + saturation_margin, 1.0)
-            setpoint = obs[:, Q] + (env_actions * boost * limit + p["d_gain"] * obs[:, RATES]) / p["p_gain"]
+            setpoint = self.task.pd_setpoint(obs, env_actions, saturation_margin)
         with np.errstate(divide="ignore", invalid="ignore"):
             shaped = np.where(self.scale > 0, (setpoint - target) / self.scale, 0.0)
         r = np.sign(shaped) * (self.deadzone + (1.0 - self.deadzone) * np.abs(shaped))

@@ -1,30 +1,27 @@
-"""``python -m agents.sweep``: seeds x hyperparameter grids on Ray Tune, results as comparison tables.
+"""Seeds x hyperparameter grids on Ray Tune, results as comparison tables (``scara-agents sweep``).
 
-    python -m agents.sweep --algo sac --env-id Scara-C11-Goal-v0 --seeds 0 1 2 3 4 \\
+    scara-agents sweep --run sac --env-id Scara-C11-Goal-v0 --seeds 0 1 2 3 4 \\
         --grid learning_rate=0.0003,0.001 --condition random-targets --out runs/sweeps/her
-    python -m agents.sweep --algo ppo-residual --seeds 0 1 2 --grid ent_coef=0,0.01 --address ray://head:10001
+    scara-agents sweep --run torch-ppo --seeds 0 1 2 --grid ent_coef=0,0.01 --address ray://head:10001
 
-Every trial is one training run (:func:`agents.training.train`, or agents.ppo's for the
-engineered agent) of the algorithm's YAML block with the grid point's overrides, then an
-evaluation of the trained policy over ``--episodes`` seeds from 1000 (the comparison's) in
-one condition of agents.compare. Ray Tune schedules the trials: on a local Ray runtime
-started for the sweep (nothing to set up; one CPU per trial by default) or on an existing
-cluster (``--address``). A trial that fails is reported and retried up to
-``--max-failures`` times; its run folder (``OUT/runs/TAG/seedN``) holds the training
-snapshots, so a retry resumes where the failed attempt stopped, and a finished run is
-not trained again (so a sweep can be re-run to fill in what is missing).
+Every trial is one training run of a registered run (agents.experiments.registry) with the grid
+point's overrides (names of its YAML block, or of the torch PPO Config), then an evaluation of
+the trained policy over ``episodes`` seeds from 1000 (the comparison's) in one condition. Ray
+Tune schedules the trials: on a local Ray runtime started for the sweep (nothing to set up; one
+CPU per trial by default) or on an existing cluster (``address``). A trial that fails is
+reported and retried up to ``max_failures`` times; its run folder (``OUT/runs/TAG/seedN``)
+holds the training snapshots, so a retry resumes where the failed attempt stopped, and a
+finished run is not trained again (so a sweep can be re-run to fill in what is missing).
 
-Writes ``OUT/sweep.json`` (the comparison's entry format, one entry per grid point, every
-seed listed) and ``OUT/sweep.md`` (the comparison's table), plus Ray's own records under
-``OUT/ray``. ``--publish DEST`` then copies each finished trial's run (model and history
-only, agents.baselines.publish) to ``DEST/ENV_ID/MODE/ALGO/seedN`` (``ALGO_TAG`` for a grid
-point other than the default), where agents.compare finds it. Ray is an install extra:
-``pip install "scara_gym[sweep]"``.
+Writes ``OUT/sweep.json`` (the comparison's entry format, one entry per grid point, every seed
+listed) and ``OUT/sweep.md`` (the comparison's table), plus Ray's own records under
+``OUT/ray``. Publishing then copies each finished trial's run (model and history only) to
+``DEST/ENV_ID/MODE/NAME/seedN`` (``NAME_TAG`` for a grid point other than the default), where
+the comparison finds it. Ray is an install extra: ``pip install "scara_gym[sweep]"``.
 """
 
 from __future__ import annotations
 
-import argparse
 import itertools
 import json
 import re
@@ -33,7 +30,12 @@ from pathlib import Path
 
 import numpy as np
 
-from agents.baselines import ALGOS, hyperparams_of, is_finished, publish, run_dir, train_run
+from agents.experiments.conditions import CONDITIONS, TASK_KWARGS, make_env
+from agents.experiments.evaluation import episodes_of, learned_policy
+from agents.experiments.registry import spec
+from agents.experiments.report import condition_tables
+from agents.experiments.runs import hyperparams_of, is_finished, publish, run_dir, train_run
+from agents.experiments.statistics import entry
 
 
 def parse_grid(items: list[str]) -> dict[str, list]:
@@ -61,12 +63,12 @@ def tag(point: dict) -> str:
 
 
 def point_hyperparams(algo: str, env_id: str, control_mode: str, point: dict) -> dict:
-    """The algorithm's YAML block with a grid point's overrides; a name the block lacks is an error."""
+    """The run's hyperparameters with a grid point's overrides; a name they lack is an error."""
     hyper = hyperparams_of(algo, env_id, control_mode)
     unknown = sorted(set(point) - set(hyper))
     if unknown:
-        raise ValueError(f"--grid names {unknown} that {algo}'s YAML block for {env_id}/{control_mode} does not "
-                         f"have; it has {sorted(hyper)}")
+        raise ValueError(f"--grid names {unknown} that {algo}'s hyperparameters for {env_id}/{control_mode} do not "
+                         f"have; they are {sorted(hyper)}")
     return {**hyper, **point}
 
 
@@ -74,28 +76,23 @@ EPISODE_ARRAYS = ("success", "collisions", "reach_time", "energy")
 
 
 def task_kwargs(hyper: dict) -> dict:
-    """The task-defining environment arguments a run trains with (agents.compare.TASK_KWARGS)."""
-    from agents.compare import TASK_KWARGS
-
+    """The task-defining environment arguments a run trains with (conditions.TASK_KWARGS)."""
     return {k: v for k, v in hyper.get("env_kwargs", {}).items() if k in TASK_KWARGS}
 
 
 def train_and_evaluate(algo: str, env_id: str, control_mode: str, seed: int, overrides: dict, out: Path,
                        condition: str, episodes: int, total_timesteps: int | None = None) -> dict:
     """One trial: train (or resume, or find finished) the run in ``out``, evaluate it; returns
-    the per-episode arrays of agents.compare plus the training seconds. A run that trains for
+    the per-episode arrays of the comparison plus the training seconds. A run that trains for
     another task than the benchmark's (task_kwargs: e.g. a looser goal_tolerance) is evaluated
     in its own task and in the benchmark's, the latter's arrays prefixed "benchmark_"."""
-    from agents.compare import CONDITIONS, episodes_of, make_env
-    from agents.training import SB3Policy
-
     hyper = point_hyperparams(algo, env_id, control_mode, overrides)
     train_run(algo, out, seed, env_id, control_mode, total_timesteps, hyperparams=hyper)
     task = task_kwargs(hyper)
     result = {"train_seconds": json.loads((out / "config.json").read_text())["train_seconds"]}
     for prefix, kwargs in (("", task), ("benchmark_", {})) if task else (("", {}),):
         env = make_env(CONDITIONS[condition], control_mode, env_id, **kwargs)
-        runs = episodes_of(env, SB3Policy(env, out), episodes, seed=1000,
+        runs = episodes_of(env, learned_policy(env, out), episodes, seed=1000,
                            identical=not CONDITIONS[condition].randomize_target)
         result.update({prefix + key: runs[key] for key in EPISODE_ARRAYS})
     return result
@@ -131,10 +128,7 @@ def run_sweep(algo: str, env_id: str, control_mode: str, seeds: list[int], grid:
     import ray
     from ray import tune
 
-    from agents.compare import CONDITIONS, entry
-
-    if algo not in ALGOS:
-        raise ValueError(f"algo must be one of {ALGOS}, got {algo!r}")
+    spec(algo)
     if condition not in CONDITIONS:
         raise ValueError(f"condition must be one of {sorted(CONDITIONS)}, got {condition!r}")
     out = Path(out).resolve()
@@ -145,7 +139,7 @@ def run_sweep(algo: str, env_id: str, control_mode: str, seeds: list[int], grid:
                "out": str(out / "runs" / tag(point) / f"seed{seed}"), "condition": condition,
                "episodes": episodes, "total_timesteps": total_timesteps}
               for point in points for seed in seeds]
-    package_root = str(Path(__file__).resolve().parent.parent)
+    package_root = str(Path(__file__).resolve().parents[2])
     started_here = not ray.is_initialized()
     if started_here:
         ray.init(address=address, num_cpus=None if address else num_cpus, include_dashboard=False,
@@ -203,8 +197,6 @@ def run_sweep(algo: str, env_id: str, control_mode: str, seeds: list[int], grid:
 
 
 def markdown(entries: list[dict], failed: list[dict]) -> str:
-    from agents.compare import condition_tables
-
     text = condition_tables(entries)
     if failed:
         text += "\nFailed trials (after their retries):\n\n" + "\n".join(
@@ -214,42 +206,16 @@ def markdown(entries: list[dict], failed: list[dict]) -> str:
     return text
 
 
-def main(argv: list[str] | None = None) -> list[dict]:
-    parser = argparse.ArgumentParser(prog="python -m agents.sweep", description=__doc__.split("\n\n")[0])
-    parser.add_argument("--algo", choices=ALGOS, required=True)
-    parser.add_argument("--env-id", default=None, help="default: Scara-C11-v1")
-    parser.add_argument("--control-mode", choices=("pd", "voltage"), default="pd")
-    parser.add_argument("--seeds", nargs="+", type=int, default=[0, 1, 2, 3, 4])
-    parser.add_argument("--grid", nargs="*", default=[], metavar="NAME=V1,V2",
-                        help="hyperparameter values to cross (names of the algorithm's YAML block)")
-    parser.add_argument("--condition", default="c11", help="the evaluation condition of agents.compare")
-    parser.add_argument("--episodes", type=int, default=100)
-    parser.add_argument("--total-timesteps", type=int, default=None, help="default: n_timesteps of the YAML")
-    parser.add_argument("--out", type=Path, default=Path("runs/sweeps/default"))
-    parser.add_argument("--address", default=None, help="an existing Ray cluster (default: a local runtime)")
-    parser.add_argument("--cpus-per-trial", type=float, default=1.0)
-    parser.add_argument("--max-concurrent", type=int, default=None,
-                        help="trials at once (default: as many as the CPUs allow); 1 leaves the other cores free")
-    parser.add_argument("--max-failures", type=int, default=2, help="retries of a failed trial")
-    parser.add_argument("--publish", type=Path, default=None, metavar="DEST",
-                        help="copy the finished trials' runs to DEST/ENV_ID/MODE/ALGO/seedN (e.g. docs/results/runs)")
-    args = parser.parse_args(argv)
-    from scara_gym import TRAINING_ENV_ID
-
-    env_id, grid = args.env_id or TRAINING_ENV_ID, parse_grid(args.grid)
-    entries = run_sweep(args.algo, env_id, args.control_mode, args.seeds, grid, args.out, args.condition,
-                        args.episodes, args.total_timesteps, args.address, args.cpus_per_trial, args.max_failures,
-                        max_concurrent=args.max_concurrent)
-    print((args.out / "sweep.md").read_text())
-    if args.publish is not None:
-        for point in grid_points(grid):
-            name = args.algo if not point else f"{args.algo}_{tag(point)}"
-            for seed in args.seeds:
-                run = args.out / "runs" / tag(point) / f"seed{seed}"
-                if is_finished(run):
-                    print("published:", publish(run, run_dir(args.publish, env_id, args.control_mode, name, seed)))
-    return entries
-
-
-if __name__ == "__main__":
-    main()
+def publish_trials(algo: str, env_id: str, control_mode: str, seeds: list[int], grid: dict[str, list], out: Path,
+                   dest: Path) -> list[Path]:
+    """Copy every finished trial's run to ``dest/ENV_ID/MODE/NAME/seedN`` (``NAME_TAG`` for a grid
+    point other than the default), where the comparison finds it."""
+    published = []
+    for point in grid_points(grid):
+        name = algo if not point else f"{algo}_{tag(point)}"
+        for seed in seeds:
+            run = Path(out) / "runs" / tag(point) / f"seed{seed}"
+            if is_finished(run):
+                published.append(publish(run, run_dir(dest, env_id, control_mode, name, seed)))
+                print("published:", published[-1])
+    return published

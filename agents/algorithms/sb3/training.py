@@ -5,9 +5,9 @@ One function, :func:`train`, trains any of the three algorithms from a hyperpara
 
 1. the training env: the registered id's arguments (``ENV_KWARGS``) on the
    native vector env through ``SB3VecEnv``, optionally a residual set-point wrapper (the
-   engineered agent of agents/ppo.py only) and ``VecNormalize``;
+   engineered agent, ``ppo-residual``, only) and ``VecNormalize``;
 2. the evaluation env: ``gym.make(env_id)`` in a ``Monitor``, seeded ``10_000 + seed``
-   (disjoint from the evaluation seeds 1000-1099 of agents.evaluate), driven by
+   (disjoint from the evaluation seeds 1000-1099 of scara-agents evaluate), driven by
    ``EvalCallback`` every ``eval_freq`` steps: the learning curve in ``eval/evaluations.npz``;
 3. a snapshot every ``snapshot_freq`` steps (``snapshot/``: model, replay buffer, normalization
    statistics, evaluation history, steps and seconds so far), written to a scratch folder
@@ -29,37 +29,16 @@ import time
 from pathlib import Path
 
 import numpy as np
-import yaml
 
-from scara_gym import ENV_KWARGS, GOAL_ENV_IDS, TRAINING_ENV_ID
+from agents.algorithms.sb3.hyperparams import load_hyperparams
+from agents.algorithms.sb3.policy import SHIPPED_MODELS, algorithm_class, residual_mapping
+from scara_gym.registration import ENV_KWARGS, GOAL_ENV_IDS, TRAINING_ENV_ID
 
-HYPERPARAMS = Path(__file__).with_name("hyperparams")
-SHIPPED_MODELS = Path(__file__).with_name("models")
 ALGORITHMS = ("ppo", "sac", "td3")
 # entries of a hyperparameter block that configure the run, not the SB3 algorithm
 RUN_KEYS = {"n_timesteps", "n_envs", "env_threads", "env_kwargs", "normalize", "residual_scale",
             "residual_deadzone", "net_arch", "log_std_init", "noise_std", "snapshot_freq",
             "eval_freq", "eval_episodes", "torch_threads", "checkpoint_freq"}
-
-
-def load_hyperparams(algo: str, env_id: str = TRAINING_ENV_ID, control_mode: str = "pd",
-                     variant: str | None = None, path: Path | None = None) -> dict:
-    """The block env_id -> control_mode (or "MODE-VARIANT" when given) of ALGO.yml."""
-    if algo not in ALGORITHMS:
-        raise ValueError(f"algo must be one of {ALGORITHMS}, got {algo!r}")
-    path = Path(path) if path is not None else HYPERPARAMS / f"{algo}.yml"
-    table = yaml.safe_load(path.read_text())
-    key = control_mode if variant is None else f"{control_mode}-{variant}"
-    if env_id not in table or key not in table[env_id]:
-        known = {k: sorted(v) for k, v in table.items()}
-        raise KeyError(f"no {algo} hyperparameters for {env_id!r} / {key!r} in {path}; it has {known}")
-    return dict(table[env_id][key])
-
-
-def algorithm_class(algo: str):
-    from stable_baselines3 import PPO, SAC, TD3
-
-    return {"ppo": PPO, "sac": SAC, "td3": TD3}[algo]
 
 
 def _normalize_kwargs(hyper: dict) -> dict | None:
@@ -69,14 +48,6 @@ def _normalize_kwargs(hyper: dict) -> dict | None:
     return dict(normalize) if normalize else None
 
 
-def _residual_mapping(task, hyper: dict):
-    if "residual_scale" not in hyper:
-        return None
-    from agents.residual import ResidualSetpoint
-
-    return ResidualSetpoint(task, hyper["residual_scale"], hyper.get("residual_deadzone", 0.0))
-
-
 def make_envs(env_id: str, env_kwargs: dict, hyper: dict, seed: int, normalizer: Path | None = None):
     """(training VecEnv, evaluation VecEnv), wrapped alike: residual set-points (if the block
     has them), then VecNormalize (if it asks for it; loaded from `normalizer` on resume)."""
@@ -84,7 +55,7 @@ def make_envs(env_id: str, env_kwargs: dict, hyper: dict, seed: int, normalizer:
     from stable_baselines3.common.monitor import Monitor
     from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
 
-    from agents.ppo import ResidualVecEnv
+    from agents.algorithms.sb3.vec_env import ResidualVecEnv
     from scara_gym.integrations.sb3 import SB3VecEnv
 
     if env_id in GOAL_ENV_IDS:  # HER asks the env for compute_reward: gym envs in SB3's DummyVecEnv
@@ -95,7 +66,7 @@ def make_envs(env_id: str, env_kwargs: dict, hyper: dict, seed: int, normalizer:
     train_env.seed(seed)
     eval_env = DummyVecEnv([lambda: Monitor(gym.make(env_id, **env_kwargs))])
     eval_env.seed(10_000 + seed)
-    mapping = _residual_mapping(train_env.venv.task, hyper) if env_id not in GOAL_ENV_IDS else None
+    mapping = residual_mapping(train_env.venv.task, hyper) if env_id not in GOAL_ENV_IDS else None
     if mapping is not None:
         train_env, eval_env = ResidualVecEnv(train_env, mapping), ResidualVecEnv(eval_env, mapping)
     norm = _normalize_kwargs(hyper)
@@ -121,7 +92,7 @@ def algorithm_kwargs(algo: str, hyper: dict, n_actions: int) -> dict:
 
         kwargs["action_noise"] = NormalActionNoise(np.zeros(n_actions), hyper["noise_std"] * np.ones(n_actions))
     if kwargs.get("replay_buffer_class") == "HerReplayBuffer":  # hindsight relabeling for the goal envs
-        from agents.her import KeptInfoHerReplayBuffer  # SB3's, with replay_buffer_kwargs' info_keys
+        from agents.algorithms.sb3.her import KeptInfoHerReplayBuffer  # SB3's, with replay_buffer_kwargs' info_keys
 
         kwargs["replay_buffer_class"] = KeptInfoHerReplayBuffer
     return {"policy_kwargs": policy_kwargs, **kwargs}
@@ -237,7 +208,7 @@ def train(algo: str, out: str | Path, env_id: str = TRAINING_ENV_ID, control_mod
     snapshots = _snapshot_callback(out, int(hyper.get("snapshot_freq", 50_000)), eval_callback, clock)
 
     callbacks = [eval_callback, snapshots]
-    if hyper.get("checkpoint_freq"):  # kept models for agents.select_checkpoint, with their normalizers
+    if hyper.get("checkpoint_freq"):  # kept models for scara-agents select, with their normalizers
         callbacks.append(CheckpointCallback(per_env(hyper["checkpoint_freq"]), str(out / "checkpoints"),
                                             name_prefix=algo, save_vecnormalize=True))
 
@@ -256,51 +227,35 @@ def train(algo: str, out: str | Path, env_id: str = TRAINING_ENV_ID, control_mod
               "total_timesteps": total_timesteps, "hyperparams": hyper, "train_seconds": train_seconds,
               "resumed": resuming, "torch_threads": torch.get_num_threads(),
               "checkpoint_rule": "none: the policy at the end of the budget",
-              "command": command or f"agents.training.train({algo!r}, {str(out)!r}, {env_id!r}, {control_mode!r}, {seed})"}
+              "command": command or f"agents.algorithms.sb3.training.train({algo!r}, {str(out)!r}, {env_id!r}, {control_mode!r}, {seed})"}
     (out / "config.json").write_text(json.dumps(config, indent=2))
     shutil.rmtree(out / "snapshot", ignore_errors=True)
     shutil.rmtree(out / "snapshot.old", ignore_errors=True)
     return out
 
 
-class SB3Policy:
-    """A model saved by :func:`train` (or a shipped one) as an obs -> action policy for one env."""
+VARIANTS = ("dr", "frugal")
+"""Blocks "MODE-VARIANT" of ppo_residual.yml: domain randomization, the energy-aware reward."""
 
-    def __init__(self, env, model_dir: str | Path) -> None:
-        import pickle
 
-        model_dir = Path(model_dir)
-        self.env = env.unwrapped if hasattr(env, "unwrapped") else env
-        config = json.loads((model_dir / "config.json").read_text())
-        trained_mode = config["env_kwargs"]["control_mode"]
-        if trained_mode != self.env.control_mode:
-            raise ValueError(f"{model_dir} was trained in {trained_mode!r} mode, "
-                             f"the environment is in {self.env.control_mode!r} mode")
-        algo = config.get("algo", "ppo")
-        # acting needs no replay buffer: a 1-entry plain one (a HER buffer would need the env)
-        replay = {"replay_buffer_class": None, "replay_buffer_kwargs": {}, "buffer_size": 1} \
-            if algo in ("sac", "td3") else None
-        self.model = algorithm_class(algo).load(model_dir / "model.zip", device="cpu", custom_objects=replay)
-        self.normalizer = None
-        if (model_dir / "vecnormalize.pkl").exists():
-            with open(model_dir / "vecnormalize.pkl", "rb") as f:
-                normalizer = pickle.load(f)
-            if normalizer.norm_obs:
-                self.normalizer = normalizer
-        self.mapping = _residual_mapping(self.env.task, config["hyperparams"])
-        self.config = config
-        self.name = f"{algo} ({model_dir.name})"
-
-    def reset(self) -> None:
-        pass
-
-    def __call__(self, obs: np.ndarray) -> np.ndarray:
-        if isinstance(obs, dict):  # a goal env's observation: the normalizer knows its keys
-            x = obs if self.normalizer is None else self.normalizer.normalize_obs(obs)
-            return self.model.predict(x, deterministic=True)[0]
-        x = np.asarray(obs, dtype=np.float64)
-        if self.normalizer is not None:
-            n = self.normalizer
-            x = np.clip((x - n.obs_rms.mean) / np.sqrt(n.obs_rms.var + n.epsilon), -n.clip_obs, n.clip_obs)
-        action, _ = self.model.predict(x.astype(np.float32), deterministic=True)
-        return action if self.mapping is None else self.mapping(obs, action)[0]
+def train_residual_ppo(control_mode: str = "pd", randomize_target: bool = False, seed: int = 0,
+          total_timesteps: int | None = None, out: str | Path = "runs/ppo_pd",
+          hyperparams: dict | None = None, eval_freq: int = 25_000, eval_episodes: int = 10,
+          progress_bar: bool = True, env_id: str = TRAINING_ENV_ID, variant: str | None = None) -> Path:
+    """Train the engineered PPO agent (:func:`train` with ppo_residual.yml's residual set-point);
+    writes model.zip, vecnormalize.pkl, config.json, checkpoints/, eval/ and tb/, and
+    resumes from its snapshot when run again into the same folder. ``variant`` ("dr",
+    "frugal") takes the YAML block "MODE-VARIANT"."""
+    if variant is not None and variant not in VARIANTS:
+        raise ValueError(f"variant must be None or one of {VARIANTS}, got {variant!r}")
+    hyper = (load_hyperparams("ppo-residual", env_id, control_mode, variant, randomize_target)
+             if hyperparams is None else dict(hyperparams))
+    hyper.setdefault("eval_freq", eval_freq)
+    hyper.setdefault("eval_episodes", eval_episodes)
+    hyper.setdefault("checkpoint_freq", 100_000)
+    hyper["env_kwargs"] = {"randomize_target": randomize_target, **hyper.get("env_kwargs", {})}
+    total_timesteps = int(total_timesteps or hyper["n_timesteps"])
+    command = (f"scara-agents train ppo-residual{'-' + variant if variant else ''} --env-id {env_id} "
+               f"--control-mode {control_mode} --seed {seed} --total-timesteps {total_timesteps}"
+               + (" --randomize-target" if randomize_target else "") + f" --out {out}")
+    return train("ppo", out, env_id, control_mode, seed, hyper, total_timesteps, progress_bar, command)

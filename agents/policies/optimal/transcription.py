@@ -1,7 +1,7 @@
 """Minimum-time reference: the fastest voltages the physics allows, by direct collocation.
 
-    python -m agents.optimal                    # C11 target: both problems, replayed in the env
-    python -m agents.optimal --target 1.5 2.5 0.25 --problem held
+    scara-agents optimal                        # C11 target: both problems, replayed in the env
+    scara-agents optimal --target 1.5 2.5 0.25
 
 Two problems on the same model and the same transcription (CasADi, Radau collocation of
 degree 3, IPOPT):
@@ -29,18 +29,18 @@ environment's rules, with the free problem's time a lower bound.
 
 from __future__ import annotations
 
-import argparse
-import json
 import time
-from dataclasses import asdict, dataclass
-from pathlib import Path
+from dataclasses import dataclass
 
+import gymnasium as gym
 import numpy as np
 
+from agents.policies.heuristic import DecHeuristic
+from agents.policies.optimal.model import casadi_model, param_values
 from scara_gym import DEFAULT_PARAMS, ScaraParams
 from scara_gym.envs import OBSERVATION_LAYOUT
+from scara_gym.registration import TRAINING_ENV_ID
 
-SOLUTIONS = Path(__file__).with_name("optimal_solutions")
 PHASES = ("A", "B", "C")  # not critical, critical (widened), above the wall
 Q, RATES, CURRENTS = (OBSERVATION_LAYOUT[name] for name in ("q", "rate", "current"))
 
@@ -61,43 +61,6 @@ class CollocationConfig:
     """final |q_i - q^_i| <= accuracy - band_margin (rad, m)"""
     ipopt_tol: float = 1e-8
     max_iter: int = 3000
-
-
-def _values(params: ScaraParams):
-    """The PARAMS record's fields as attributes (floats and arrays)."""
-    from types import SimpleNamespace
-
-    record = params.to_record()
-    return SimpleNamespace(**{name: (float(record[name]) if np.ndim(record[name]) == 0 else np.array(record[name]))
-                              for name in record.dtype.names})
-
-
-def casadi_model(params: ScaraParams = DEFAULT_PARAMS):
-    """CasADi functions of the C11 model with free currents (no hold: the problems keep the
-    currents inside their limits): f(x, U) -> x' and the tip's x coordinate tip_x(x)."""
-    import casadi as ca
-
-    p = _values(params)
-    x = ca.SX.sym("x", 9)
-    u = ca.SX.sym("u", 3)
-    q2, v1, v2, v3 = x[1], x[3], x[4], x[5]
-    ku = [float(p.torque_constant[i] * p.gear_ratio[i]) for i in range(3)]
-    torques = [ku[i] * x[6 + i] for i in range(3)]
-    current_rates = [(u[i] - ku[i] * x[3 + i] - float(p.resistance[i]) * x[6 + i]) / float(p.inductance[i])
-                     for i in range(3)]
-    c, s = ca.cos(q2), ca.sin(q2)
-    m11 = p.theta1 + 2.0 * p.theta2 * c + p.theta3
-    m12 = p.theta2 * c + p.theta3
-    m22 = p.theta3
-    b1 = torques[0] + p.theta2 * (2.0 * v1 * v2 + v2 * v2) * s
-    b2 = torques[1] - p.theta2 * v1 * v1 * s
-    det = p.theta1 * p.theta3 - p.theta2 * p.theta2 * c * c
-    a1 = (m22 * b1 - m12 * b2) / det
-    a2 = (m11 * b2 - m12 * b1) / det
-    a3 = (torques[2] - p.load_mass * p.gravity) / p.vertical_mass
-    xdot = ca.vertcat(v1, v2, v3, a1, a2, a3, *current_rates)
-    tip_x = p.link1_length * ca.cos(x[0]) + p.link2_length * ca.cos(x[0] + x[1])
-    return ca.Function("f", [x, u], [xdot]), ca.Function("tip_x", [x], [tip_x])
 
 
 def radau_coefficients(degree: int = 3):
@@ -179,7 +142,7 @@ def solve(problem: str = "held", start=(0.0, 0.0, 0.0), target=(2.0, 2.0, 0.3),
     if problem not in ("held", "free"):
         raise ValueError(f"problem must be 'held' or 'free', got {problem!r}")
     params = params.replace({"task.start": tuple(map(float, start)), "task.target": tuple(map(float, target))})
-    p = _values(params)
+    p = param_values(params)
     guess = guess or heuristic_guess(params)
     f, tip_x = casadi_model(params)
     phases, controls, structure = _layout(problem, config, guess["times"])
@@ -307,11 +270,7 @@ def heuristic_guess(params: ScaraParams, distances=(0.06, 0.08, 0.1, 0.15, 0.2, 
     """States, actions and phase instants of the dec heuristic (voltage mode) from the start
     to the target: a collision-free path through the same three phases (the first trigger
     distance in `distances` that clears the wall)."""
-    import gymnasium as gym
-
-    from agents.policies import DecHeuristic
-
-    env = gym.make("Scara-C11-v1", control_mode="voltage", params=params, start=params.task.start,
+    env = gym.make(TRAINING_ENV_ID, control_mode="voltage", params=params, start=params.task.start,
                    target=params.task.target).unwrapped
     for distance in distances:
         policy = DecHeuristic(env, "continue", critical_distance=distance)
@@ -369,199 +328,3 @@ def minimum_time(problem: str = "held", start=(0.0, 0.0, 0.0), target=(2.0, 2.0,
             return again
         solution = again
     return solution
-
-
-def cached_solution(start=(0.0, 0.0, 0.0), target=(2.0, 2.0, 0.3), params: ScaraParams = DEFAULT_PARAMS,
-                    wall_margin: float = CollocationConfig.wall_margin) -> dict | None:
-    """The shipped held solution for this start, target, parameter set and wall margin, if there is one."""
-    for path in sorted(SOLUTIONS.glob("*.json")):
-        data = json.loads(path.read_text())
-        if (np.allclose(data["start"], start, atol=1e-12) and np.allclose(data["target"], target, atol=1e-12)
-                and data["params"] == _params_key(params) and data["config"]["wall_margin"] == wall_margin):
-            return data
-    return None
-
-
-def _params_key(params: ScaraParams) -> dict:
-    record = params.to_record()
-    return {name: np.asarray(record[name]).tolist() for name in record.dtype.names
-            if name not in ("target", "dec")}
-
-
-class OptimalPolicy:
-    """Replays the held minimum-time actions in a "voltage"-mode environment.
-
-    The actions of the shipped solution (C11 start and target, default parameters) are
-    package data; for another start, target or parameter set, ``minimum_time`` solves the
-    problem (CasADi needed) when the episode starts. Steps beyond the planned ones (which a
-    faithful replay never reaches) command the C11 PD law towards the target."""
-
-    name = "optimal"
-
-    def __init__(self, env, solve_missing: bool = True) -> None:
-        self.env = env.unwrapped if hasattr(env, "unwrapped") else env
-        if self.env.control_mode != "voltage":
-            raise ValueError("the optimal reference commands voltages: it needs control_mode='voltage', "
-                             f"the environment is in {self.env.control_mode!r} mode")
-        self.solve_missing = solve_missing
-        self.plans: dict[tuple, np.ndarray] = {}
-        self.actions = None
-        self.step_index = 0
-
-    def reset(self) -> None:
-        self.actions = None
-        self.step_index = 0
-
-    @staticmethod
-    def plan_key(start, target) -> tuple:
-        """The key of ``plans`` for an episode from start to target."""
-        return tuple(np.round(np.concatenate([start, target]), 12))
-
-    def plan(self, start, target) -> np.ndarray:
-        key = self.plan_key(start, target)
-        if key not in self.plans:
-            params = self.env.params
-            data = cached_solution(start, target, params)
-            if data is not None:
-                self.plans[key] = np.array(data["held"]["actions"])
-            elif self.solve_missing:
-                self.plans[key] = minimum_time("held", start, target, params).actions
-            else:
-                raise LookupError(f"no shipped minimum-time solution from {list(start)} to {list(target)}")
-        return self.plans[key]
-
-    def __call__(self, obs: np.ndarray) -> np.ndarray:
-        obs = np.asarray(obs, dtype=float)
-        target = obs[Q] + obs[OBSERVATION_LAYOUT["target_error"]]
-        if self.actions is None:  # the first observation of the episode: the start
-            self.actions = self.plan(obs[Q].astype(float).round(6), target.round(6))
-        k = self.step_index
-        self.step_index += 1
-        if k < len(self.actions):
-            return np.clip(self.actions[k], -1.0, 1.0)
-        return self.env.pd_action(obs, target)
-
-
-def replaying(actions: np.ndarray, env_id: str, start, target, params: ScaraParams):
-    """A "voltage"-mode environment from start to target and an OptimalPolicy in it that
-    replays ``actions``."""
-    import gymnasium as gym
-
-    env = gym.make(env_id, control_mode="voltage", params=params, start=tuple(start), target=tuple(target))
-    policy = OptimalPolicy(env)
-    policy.plans[OptimalPolicy.plan_key(start, target)] = np.asarray(actions)
-    return env, policy
-
-
-def replay(actions: np.ndarray, env_id: str = "Scara-C11-v1", start=(0.0, 0.0, 0.0), target=(2.0, 2.0, 0.3),
-           params: ScaraParams = DEFAULT_PARAMS) -> dict:
-    """Held actions run in the environment ("voltage" mode); the episode summary of
-    agents.policies.run_episode (success, collisions, reach_time, energy, ...)."""
-    from agents.policies import run_episode
-
-    return run_episode(*replaying(actions, env_id, start, target, params), seed=0)
-
-
-def _reference_replay(env_id: str, start, target, params: ScaraParams, wall_margin: float):
-    """The shipped solution with this wall margin replayed in the environment ("voltage" mode):
-    (the observation before each control step, the held action taken there, the task's
-    snapshot after each step but the last). Raises if there is no such solution or the replay
-    does not reach the target without a collision."""
-    data = cached_solution(start, target, params, wall_margin)
-    if data is None:
-        raise LookupError(f"no shipped minimum-time solution from {list(start)} to {list(target)} with wall margin "
-                          f"{wall_margin} m (python -m agents.optimal --wall-margin M --write FILE makes one)")
-    env, policy = replaying(np.array(data["held"]["actions"]), env_id, start, target, params)
-    task = env.unwrapped.task
-    obs, _ = env.reset(seed=0)
-    policy.reset()
-    observations, actions, snapshots = [], [], []
-    while True:
-        action = policy(obs)
-        observations.append(np.asarray(obs, dtype=np.float64))
-        actions.append(np.asarray(action, dtype=np.float64))
-        obs, _, terminated, truncated, info = env.step(action)
-        if terminated or truncated:
-            break
-        snapshots.append(task.snapshot(0))
-    env.close()
-    if not info["is_success"] or info["collisions"]:
-        raise RuntimeError(f"the optimal reference from {list(start)} to {list(target)} does not reach the "
-                           f"target without a collision in {env_id}")
-    return observations, actions, snapshots
-
-
-def reference_snapshots(env_id: str = "Scara-C11-v1", start=(0.0, 0.0, 0.0), target=(2.0, 2.0, 0.3),
-                        params: ScaraParams = DEFAULT_PARAMS,
-                        wall_margin: float = CollocationConfig.wall_margin) -> list[dict]:
-    """The states the optimal reference (its shipped solution with this wall margin) passes
-    through in the environment, one after each of its control steps before the last (the one
-    that reaches the target), as ``ScaraTask.snapshot`` gives them: starts for reference state
-    initialization (agents.torch_ppo's ``demo_resets``). Raises if the replay does not reach
-    the target."""
-    return _reference_replay(env_id, start, target, params, wall_margin)[2]
-
-
-def reference_demonstration(env_id: str = "Scara-C11-v1", start=(0.0, 0.0, 0.0), target=(2.0, 2.0, 0.3),
-                            params: ScaraParams = DEFAULT_PARAMS,
-                            wall_margin: float = CollocationConfig.wall_margin) -> tuple[np.ndarray, np.ndarray]:
-    """(observations, actions) of the optimal reference's replay in the environment ("voltage"
-    mode): the observation before each of its control steps and the held action it takes
-    there, as float64 arrays (steps, 18) and (steps, 3). Demonstrations for behaviour cloning
-    (agents.torch_ppo's ``demo_bc``). Raises if the replay does not reach the target."""
-    observations, actions, _ = _reference_replay(env_id, start, target, params, wall_margin)
-    return np.array(observations), np.array(actions)
-
-
-def main(argv: list[str] | None = None) -> dict:
-    parser = argparse.ArgumentParser(prog="python -m agents.optimal", description=__doc__.split("\n\n")[0])
-    parser.add_argument("--start", nargs=3, type=float, default=list(DEFAULT_PARAMS.task.start))
-    parser.add_argument("--target", nargs=3, type=float, default=list(DEFAULT_PARAMS.task.target))
-    parser.add_argument("--write", type=Path, default=None,
-                        help="write the solutions as JSON here (the shipped file: agents/optimal_solutions/c11.json)")
-    parser.add_argument("--condition", default="c11",
-                        help="a parameter shift of agents.compare.CONDITIONS (load-x2, wall-closer, "
-                             "current-limits-15, resistance+20); default c11, the C11 parameters")
-    parser.add_argument("--wall-margin", type=float, default=CollocationConfig.wall_margin,
-                        help="m, distance the held solution keeps from the wall plane while below h_obs (default "
-                             "%(default)s; a wider one gives agents.torch_ppo's demo resets states with slack)")
-    parser.add_argument("--verbose", action="store_true")
-    args = parser.parse_args(argv)
-    from agents.compare import CONDITIONS
-
-    shifts = [name for name, c in CONDITIONS.items() if not c.randomize_target]
-    if args.condition not in shifts:
-        parser.error(f"--condition must be one of {shifts}, got {args.condition!r}")
-    params = DEFAULT_PARAMS.replace(CONDITIONS[args.condition].params)
-    if not 0.0 <= args.wall_margin < params.obstacle.critical_distance:
-        parser.error(f"--wall-margin must be in [0, {params.obstacle.critical_distance}) m (the critical band), "
-                     f"got {args.wall_margin}")
-    config = CollocationConfig(wall_margin=args.wall_margin)
-    bound_config = CollocationConfig(wall_margin=0.0, band_margin=0.0)
-    started = time.perf_counter()
-    free = minimum_time("free", args.start, args.target, params, config=bound_config, verbose=args.verbose)
-    print(f"free (the continuous-time bound, no margins): {free.time:.5f} s ({free.status}); critical from "
-          f"{free.phase_times[0]:.4f} s, q3 at h_obs {free.phase_times[1]:.4f} s")
-    held = minimum_time("held", args.start, args.target, params, config=config, verbose=args.verbose)
-    result = replay(held.actions, start=args.start, target=args.target, params=params)
-    print(f"held (0.01 s steps, margins {config.wall_margin} m / {config.band_margin}): {held.time:.5f} s in the "
-          f"transcription ({held.status}); replayed in Scara-C11-v1: success {result['success']}, collisions "
-          f"{result['collisions']}, time {result['reach_time']:.5f} s, energy {result['energy']:.1f} J")
-    data = {"start": list(args.start), "target": list(args.target), "condition": args.condition,
-            "overrides": CONDITIONS[args.condition].params, "params": _params_key(params),
-            "config": asdict(config), "free": {**free.to_json(), "config": asdict(bound_config)}, "held": held.to_json(),
-            "replay": {k: result[k] for k in ("success", "collisions", "reach_time", "energy", "steps")},
-            "seconds": time.perf_counter() - started,
-            "command": "python -m agents.optimal" + (f" --start {' '.join(map(str, args.start))}"
-                                                     f" --target {' '.join(map(str, args.target))}"
-                                                     f" --condition {args.condition}")
-                       + (f" --wall-margin {args.wall_margin}" if args.wall_margin != CollocationConfig.wall_margin
-                          else "")}
-    if args.write:
-        args.write.parent.mkdir(parents=True, exist_ok=True)
-        args.write.write_text(json.dumps(data, indent=1))
-    return data
-
-
-if __name__ == "__main__":
-    main()

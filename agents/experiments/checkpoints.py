@@ -1,7 +1,7 @@
-"""``python -m agents.select_checkpoint RUN --out models/NAME``: ship the best checkpoint of a run.
+"""Checkpoint selection (``scara-agents select RUN --out models/NAME``): ship the best checkpoint of a run.
 
 PPO on this task is not monotone: the fastest policies can appear mid-run and the final
-one can be slower. agents.train saves a checkpoint about every 100k steps together with
+one can be slower. ``scara-agents train ppo-residual`` saves a checkpoint about every 100k steps together with
 its VecNormalize statistics; this evaluates each one over the same seeds and copies the
 fastest checkpoint that succeeds in every episode without a collision (as EvalCallback's
 best model, but with the matching normalization statistics) to OUT, with its evaluation
@@ -10,22 +10,20 @@ log and a config.json that records the selection.
 
 from __future__ import annotations
 
-import argparse
 import json
 import math
 import shutil
 import tempfile
 from pathlib import Path
 
+import gymnasium as gym
+
+from agents.algorithms.sb3.policy import PPOPolicy
+from agents.policies import run_episode
+from scara_gym.registration import ENV_ID
+
 
 def evaluate_checkpoints(run: Path, episodes: int = 5, seed: int = 5000) -> list[dict]:
-    import gymnasium as gym
-
-    import scara_gym  # noqa: F401
-    from agents.policies import run_episode
-    from agents.ppo import PPOPolicy
-    from scara_gym import ENV_ID
-
     config = json.loads((run / "config.json").read_text())
     kwargs = {k: config["env_kwargs"][k] for k in ("control_mode", "randomize_target")}
     env = gym.make(config.get("env_id", ENV_ID), **kwargs)
@@ -53,29 +51,23 @@ def stage(run: Path, steps: int, out: Path) -> None:
     shutil.copy(run / "config.json", out / "config.json")
 
 
-def main(argv: list[str] | None = None) -> dict:
-    parser = argparse.ArgumentParser(prog="python -m agents.select_checkpoint", description=__doc__.split("\n\n")[0])
-    parser.add_argument("run", type=Path, help="the --out folder of agents.train")
-    parser.add_argument("--out", type=Path, required=True)
-    parser.add_argument("--episodes", type=int, default=5)
-    parser.add_argument("--seed", type=int, default=5000)
-    args = parser.parse_args(argv)
-    rows = evaluate_checkpoints(args.run, args.episodes, args.seed)
+def select_checkpoint(run: Path, out: Path, episodes: int = 5, seed: int = 5000) -> dict:
+    """Evaluate every checkpoint of ``run`` and ship the fastest that succeeds in every episode
+    without a collision to ``out`` (model, normalizer, evaluation log and a config.json that
+    records the selection and every checkpoint's figures); returns the chosen row. Raises
+    ValueError where no checkpoint qualifies."""
+    rows = evaluate_checkpoints(run, episodes, seed)
     clean = [r for r in rows if r["success_rate"] == 1.0 and r["collision_rate"] == 0.0]
     if not clean:
-        raise SystemExit("no checkpoint succeeded in every episode without a collision")
+        raise ValueError(f"no checkpoint of {run} succeeded in every episode without a collision")
     best = min(clean, key=lambda r: r["mean_time"])
-    stage(args.run, best["steps"], args.out)
-    (args.out / "eval").mkdir(exist_ok=True)
-    shutil.copy(args.run / "eval" / "evaluations.npz", args.out / "eval" / "evaluations.npz")
-    config = json.loads((args.out / "config.json").read_text())
+    stage(run, best["steps"], out)
+    (out / "eval").mkdir(exist_ok=True)
+    shutil.copy(run / "eval" / "evaluations.npz", out / "eval" / "evaluations.npz")
+    config = json.loads((out / "config.json").read_text())
     config["selected_checkpoint"] = best
-    config["selection"] = (f"fastest checkpoint with success in all {args.episodes} episodes (seeds "
-                           f"{args.seed}..) and no collision, by python -m agents.select_checkpoint")
+    config["selection"] = (f"fastest checkpoint with success in all {episodes} episodes (seeds "
+                           f"{seed}..) and no collision, by scara-agents select")
     config["checkpoints"] = rows
-    (args.out / "config.json").write_text(json.dumps(config, indent=2))
+    (out / "config.json").write_text(json.dumps(config, indent=2))
     return best
-
-
-if __name__ == "__main__":
-    main()

@@ -25,10 +25,18 @@ from __future__ import annotations
 import gymnasium as gym
 import numpy as np
 
-from scara_gym.envs import OBSERVATION_LAYOUT
+from scara_gym.envs.task import OBSERVATION_LAYOUT
 from scara_gym.model.params import DEFAULT_PARAMS, ScaraParams
+from scara_gym.registration import TRAINING_ENV_ID
 
 Q, RATES, TARGET_ERROR = (OBSERVATION_LAYOUT[name] for name in ("q", "rate", "target_error"))
+
+
+def hold_and_climb(held: np.ndarray, target: np.ndarray, lowest_height: float = -np.inf) -> np.ndarray:
+    """The set-point that holds axes 1 and 2 at ``held`` [rad] and drives axis 3 to its target,
+    at least ``lowest_height`` [m]: the braking move of the seed paper's obstacle rule (the
+    ``dec`` heuristic's, and this shield's backup)."""
+    return np.array([held[0], held[1], max(target[2], lowest_height)])
 
 
 class Shield:
@@ -36,11 +44,11 @@ class Shield:
     without a collision after it, else the backup's (module docstring). ``interventions``
     counts the steps of the current episode where the backup acted. ``env`` gives the model's
     environment arguments and, for ``__call__``, the robot; ``filter`` shields any task's robot
-    (a vector environment's in training: agents.torch_ppo's ``shield``), with ``policy`` None."""
+    (a vector environment's in training, shielded RL), with ``policy`` None."""
 
     def __init__(self, env, policy, params: ScaraParams | None = DEFAULT_PARAMS, horizon: int = 100,
                  rest_rate: float = 0.02, climb_margin: float = 0.01) -> None:
-        self.env = env.unwrapped if hasattr(env, "unwrapped") else env
+        self.env = env.unwrapped
         if self.env.task.actuator is not None:
             raise ValueError("Shield: the action_delay / action_rate_limit line has a state the model cannot copy")
         if not (isinstance(horizon, (int, np.integer)) and 1 <= horizon <= 1000):
@@ -56,7 +64,7 @@ class Shield:
         kwargs.pop("randomize_params", None)
         if params is not None:
             kwargs["params"] = params
-        self.model = gym.make(spec.id if spec is not None else "Scara-C11-v1", **kwargs).unwrapped
+        self.model = gym.make(spec.id if spec is not None else TRAINING_ENV_ID, **kwargs).unwrapped
         self.model_task = self.model.task
         self.name = f"{getattr(policy, 'name', 'policy')} + shield"
         self.interventions = 0
@@ -69,12 +77,8 @@ class Shield:
     def backup(self, obs: np.ndarray, task, index: int = 0) -> np.ndarray:
         """The backup's action on robot ``index``'s raw observation, for the environment of ``task``."""
         q = obs[Q].astype(float)
-        target = q + obs[TARGET_ERROR]
         height = task.episode_params[index].obstacle.height
-        setpoint = np.array([q[0], q[1], max(target[2], height + self.climb_margin)])
-        if task.control_mode == "pd":
-            return np.clip(task.setpoint_to_action(setpoint), -1.0, 1.0)
-        return task.pd_action(obs, setpoint)
+        return task.setpoint_action(obs, hold_and_climb(q, q + obs[TARGET_ERROR], height + self.climb_margin))
 
     def safe(self, snapshot: dict, action: np.ndarray) -> bool:
         """Whether, from ``snapshot``, ``action`` and then the backup leave the wall untouched

@@ -1,6 +1,6 @@
-"""Reference policies for Scara-C11-v0: the PD baseline and the seed paper's ``dec`` heuristic.
+"""The seed paper's ``dec`` obstacle heuristic as a policy, and its smallest safe trigger distance.
 
-Both act through the environment's action interface only (observation in, action
+It acts through the environment's action interface only (observation in, action
 out), for either control mode:
 
 - "pd" mode: the action is the PD set-point; the environment's PD law makes voltages.
@@ -26,50 +26,23 @@ the frozen set-point still moves per second (dec = 0: frozen). Release:
 
 from __future__ import annotations
 
+import gymnasium as gym
 import numpy as np
 
-from scara_gym.envs import OBSERVATION_LAYOUT, ScaraEnv
+from agents.policies.base import SetpointPolicy
+from agents.policies.episode import run_episode
+from scara_gym.envs import OBSERVATION_LAYOUT
+from scara_gym.registration import ENV_ID
+from scara_gym.wrappers.shield import hold_and_climb
 
 Q, RATES, TARGET_ERROR = (OBSERVATION_LAYOUT[name] for name in ("q", "rate", "target_error"))
-CURRENTS = OBSERVATION_LAYOUT["current"]
-TIP_X, TIP_Y = OBSERVATION_LAYOUT["tip_x"], OBSERVATION_LAYOUT["tip_y"]
 WALL_DISTANCE, HEIGHT_MARGIN = OBSERVATION_LAYOUT["wall_distance"], OBSERVATION_LAYOUT["height_margin"]
 
 
-class Policy:
-    """obs -> action for one environment; reset() at the start of each episode."""
-
-    name = "policy"
-
-    def __init__(self, env: ScaraEnv) -> None:
-        self.env = env.unwrapped if hasattr(env, "unwrapped") else env
-
-    def reset(self) -> None:
-        pass
-
-    def setpoint(self, obs: np.ndarray) -> np.ndarray:
-        raise NotImplementedError
-
-    def __call__(self, obs: np.ndarray) -> np.ndarray:
-        setpoint = self.setpoint(np.asarray(obs, dtype=float))
-        if self.env.control_mode == "pd":
-            return np.clip(self.env.setpoint_to_action(setpoint), -1.0, 1.0)
-        return self.env.pd_action(obs, setpoint)
-
-
-class PDPolicy(Policy):
-    """The classical baseline: command the target, ignore the wall."""
-
-    name = "pd"
-
-    def setpoint(self, obs):
-        return obs[Q] + obs[TARGET_ERROR]
-
-
-class DecHeuristic(Policy):
+class DecHeuristic(SetpointPolicy):
     """The seed's obstacle rule as a policy (module docstring): freeze, climb, release."""
 
-    def __init__(self, env: ScaraEnv, variant: str = "continue", critical_distance: float = 0.1,
+    def __init__(self, env, variant: str = "continue", critical_distance: float = 0.1,
                  dec: float = 0.0, rest_rate: float = 0.05) -> None:
         super().__init__(env)
         if variant not in ("continue", "restart"):
@@ -103,47 +76,8 @@ class DecHeuristic(Policy):
                 self.phase = "released"
             else:
                 self.frozen[:2] += self.dec * self.env.control_dt * (target[:2] - self.frozen[:2])
-                return np.array([self.frozen[0], self.frozen[1], target[2]])
+                return hold_and_climb(self.frozen, target)
         return target
-
-
-def _trace_row(obs) -> tuple:
-    return obs[TIP_X], obs[TIP_Y], obs[WALL_DISTANCE], obs[HEIGHT_MARGIN], obs[Q][2]
-
-
-def run_episode(env, policy, seed: int | None = None, options: dict | None = None, record: bool = False):
-    """One episode; returns a summary dict (and the per-step trace if record)."""
-    obs, _ = env.reset(seed=seed, options=options)
-    policy.reset()
-    unwrapped = env.unwrapped
-    # measured on the true flat observation: the same for noisy and goal-conditioned envs
-    state = unwrapped.task.obs[0]
-    total, steps, peak = 0.0, 0, np.zeros(3)
-    trace = [(0.0, *_trace_row(state))] if record else None
-    info = {}
-    while True:
-        obs, reward, terminated, truncated, info = env.step(policy(obs))
-        total += reward
-        steps += 1
-        peak = np.maximum(peak, np.abs(state[CURRENTS]))
-        if record:
-            trace.append((info["time"], *_trace_row(state)))
-        if terminated or truncated:
-            break
-    summary = {
-        "success": bool(info["is_success"]),
-        "collisions": int(info["collisions"]),
-        # the located C11 event's instant; a goal env's success at a looser goal_tolerance has
-        # none: then the end of the step whose goal test passed
-        "reach_time": float(info.get("reach_time", info["time"] if info["is_success"] else np.nan)),
-        "energy": float(info["energy"]),
-        "peak_current_fraction": float(np.max(peak / unwrapped.params.current_limits)),
-        "return": float(total),
-        "steps": steps,
-    }
-    if record:
-        summary["trace"] = np.array(trace)  # t, tip_x, tip_y, wall_distance, height_margin, q3
-    return summary
 
 
 def smallest_safe_distance(variant: str = "continue", env_kwargs: dict | None = None,
@@ -151,10 +85,8 @@ def smallest_safe_distance(variant: str = "continue", env_kwargs: dict | None = 
     """Bisection for the smallest trigger distance at which the heuristic clears the wall
     and reaches the target in the episode of `seed` (of `env`, by default Scara-C11-v0 with
     `env_kwargs`); returns (distance, episode summary there)."""
-    import gymnasium as gym
-
     if env is None:
-        env = gym.make("Scara-C11-v0", **(env_kwargs or {}))
+        env = gym.make(ENV_ID, **(env_kwargs or {}))
 
     def safe(distance: float):
         result = run_episode(env, DecHeuristic(env, variant, critical_distance=distance), seed=seed)

@@ -1,0 +1,7 @@
+"""Things that train, each with the loader of what it saved as a policy.
+
+- :mod:`~agents.algorithms.torch_ppo`: PPO in one file (torch; CPU or the CUDA env), with its
+  research add-ons as hooks in :mod:`~agents.algorithms.torch_ppo_hooks`;
+- :mod:`~agents.algorithms.sb3`: stable-baselines3's PPO, SAC and TD3 (resumable training,
+  the YAML hyperparameters, the HER buffer, the saved-model policies).
+"""

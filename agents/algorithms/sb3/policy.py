@@ -1,0 +1,94 @@
+"""Saved stable-baselines3 models as policies: any run of :func:`agents.algorithms.sb3.training.train`
+and the agents shipped with the package (``agents/models/NAME``, found by name from anywhere)."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+
+from scara_gym.wrappers import ResidualSetpoint
+
+SHIPPED_MODELS = Path(__file__).resolve().parents[2] / "models"
+
+
+def algorithm_class(algo: str):
+    from stable_baselines3 import PPO, SAC, TD3
+
+    return {"ppo": PPO, "sac": SAC, "td3": TD3}[algo]
+
+
+def residual_mapping(task, hyper: dict) -> ResidualSetpoint | None:
+    """The residual set-point a hyperparameter block acts through (its residual_scale), or None."""
+    if "residual_scale" not in hyper:
+        return None
+    return ResidualSetpoint(task, hyper["residual_scale"], hyper.get("residual_deadzone", 0.0))
+
+
+def shipped_models() -> list[str]:
+    """Names of the agents shipped with the package (agents/models/NAME)."""
+    return sorted(p.parent.name for p in SHIPPED_MODELS.glob("*/model.zip"))
+
+
+def resolve_model(name_or_path: str | Path) -> Path:
+    """A model folder: an existing path, else the name of a shipped model."""
+    path = Path(name_or_path)
+    if (path / "model.zip").exists():
+        return path
+    if (SHIPPED_MODELS / str(name_or_path) / "model.zip").exists():
+        return SHIPPED_MODELS / str(name_or_path)
+    raise FileNotFoundError(f"no PPO model at {str(name_or_path)!r}: give a folder with model.zip "
+                            f"or a shipped model name {shipped_models()}")
+
+
+class SB3Policy:
+    """A model saved by :func:`train` (or a shipped one) as an obs -> action policy for one env."""
+
+    def __init__(self, env, model_dir: str | Path) -> None:
+        import pickle
+
+        model_dir = Path(model_dir)
+        self.env = env.unwrapped
+        config = json.loads((model_dir / "config.json").read_text())
+        trained_mode = config["env_kwargs"]["control_mode"]
+        if trained_mode != self.env.control_mode:
+            raise ValueError(f"{model_dir} was trained in {trained_mode!r} mode, "
+                             f"the environment is in {self.env.control_mode!r} mode")
+        algo = config.get("algo", "ppo")
+        # acting needs no replay buffer: a 1-entry plain one (a HER buffer would need the env)
+        replay = {"replay_buffer_class": None, "replay_buffer_kwargs": {}, "buffer_size": 1} \
+            if algo in ("sac", "td3") else None
+        self.model = algorithm_class(algo).load(model_dir / "model.zip", device="cpu", custom_objects=replay)
+        self.normalizer = None
+        if (model_dir / "vecnormalize.pkl").exists():
+            with open(model_dir / "vecnormalize.pkl", "rb") as f:
+                normalizer = pickle.load(f)
+            if normalizer.norm_obs:
+                self.normalizer = normalizer
+        self.mapping = residual_mapping(self.env.task, config["hyperparams"])
+        self.config = config
+        self.name = f"{algo} ({model_dir.name})"
+
+    def reset(self) -> None:
+        pass
+
+    def __call__(self, obs: np.ndarray) -> np.ndarray:
+        if isinstance(obs, dict):  # a goal env's observation: the normalizer knows its keys
+            x = obs if self.normalizer is None else self.normalizer.normalize_obs(obs)
+            return self.model.predict(x, deterministic=True)[0]
+        x = np.asarray(obs, dtype=np.float64)
+        if self.normalizer is not None:
+            n = self.normalizer
+            x = np.clip((x - n.obs_rms.mean) / np.sqrt(n.obs_rms.var + n.epsilon), -n.clip_obs, n.clip_obs)
+        action, _ = self.model.predict(x.astype(np.float32), deterministic=True)
+        return action if self.mapping is None else self.mapping(obs, action)[0]
+
+
+class PPOPolicy(SB3Policy):
+    """A saved PPO agent (a folder, or a shipped model's name) as an obs -> action policy."""
+
+    def __init__(self, env, model_dir: str | Path) -> None:
+        model_dir = resolve_model(model_dir)
+        super().__init__(env, model_dir)
+        self.name = f"ppo ({model_dir.name})"

@@ -1,0 +1,109 @@
+"""The single-file PPO's typed configuration (torch-free, so that the command line and the run
+registry can read and check it without importing torch)."""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass, field
+
+from scara_gym.registration import TRAINING_ENV_ID
+
+
+@dataclass
+class Config:
+    """One run of the single-file PPO (every field a command-line flag of ``scara-agents torch-ppo``)."""
+
+    env_id: str = TRAINING_ENV_ID
+    control_mode: str = "pd"
+    randomize_target: bool = False
+    randomize_params: str | None = None  # domain randomization per episode: a preset of scara_gym.envs.randomization
+    reward_weights: dict[str, float] = field(default_factory=dict)  # env reward weights to change (none: the env's)
+    residual_scale: tuple[float, float, float] | None = None  # act through a residual set-point around the target
+    residual_deadzone: float = 0.2  # (scara_gym.wrappers.residual: an engineered agent, not plain PPO)
+    device: str = "cpu"            # where the env runs and the agent trains: "cpu" or "cuda"
+    seed: int = 0
+    num_envs: int = 16
+    num_steps: int = 128           # rollout length per env; a batch is num_envs * num_steps
+    total_timesteps: int = 1_000_000
+    learning_rate: float = 3e-4
+    anneal_lr: bool = True
+    gamma: float = 0.99
+    gae_lambda: float = 0.95
+    num_minibatches: int = 32
+    update_epochs: int = 10
+    clip_coef: float = 0.2
+    ent_coef: float = 0.0
+    vf_coef: float = 0.5
+    max_grad_norm: float = 0.5
+    hidden_size: int = 64
+    normalize_reward: bool = True  # scale rewards by the running std of the discounted return
+    clip_obs: float = 10.0
+    env_threads: int = 1           # numba threads of the CPU env (torch takes the cores between steps)
+    torch_threads: int = 0         # 0: torch's default
+    compile: bool = False          # torch.compile the minibatch gradient
+    checkpoint_every: int = 10     # updates between checkpoints
+    init_log_std: float = 0.0      # the policy's initial log standard deviation
+    init_from: str | None = None   # a finished run of this file to start from (its model.pt), e.g. to fine-tune
+    # research add-ons, read by agents.algorithms.torch_ppo_hooks.hooks_for (plain PPO: all off)
+    demo_resets: float = 0.0       # share of training episodes that start on the optimal reference's path
+    demo_wall_margin: float = 1e-3 # m, the wall margin of that reference (a shipped optimal solution)
+    target_replay: float = 0.0     # share of training episodes given a target the agent recently failed
+    shield: bool = False           # act behind scara_gym.wrappers.Shield, in training and evaluation
+    demo_bc: float = 0.0           # weight of the behaviour-cloning term on the optimal reference's steps
+    demo_bc_decay: float = 1.0     # that weight's factor per update (DAPG's decay)
+    demo_bc_pretrain: int = 0      # Adam steps on the cloning term alone before the first rollout
+    out: str = "runs/torch_ppo"
+
+    @property
+    def batch_size(self) -> int:
+        return self.num_envs * self.num_steps
+
+    @property
+    def minibatch_size(self) -> int:
+        return self.batch_size // self.num_minibatches
+
+    def to_dict(self) -> dict:
+        """The run's record in config.json (JSON types: the tuple as a list)."""
+        return dataclasses.asdict(self)
+
+    @classmethod
+    def from_dict(cls, record: dict) -> Config:
+        """A Config from a run's config.json (its other entries ignored). Runs written before the
+        fields were typed hold reward_weights as "name=value,..." and residual_scale as "a,b,c"
+        ("" for none), and "" for no randomize_params or init_from: those are read too."""
+        known = {f.name for f in dataclasses.fields(cls)}
+        values = {k: v for k, v in record.items() if k in known}
+        if isinstance(values.get("reward_weights"), str):
+            values["reward_weights"] = parse_reward_weights(values["reward_weights"])
+        if isinstance(values.get("residual_scale"), str):
+            values["residual_scale"] = parse_floats("residual_scale", values["residual_scale"], 3) \
+                if values["residual_scale"] else None
+        elif values.get("residual_scale") is not None:
+            values["residual_scale"] = tuple(float(x) for x in values["residual_scale"])
+        for name in ("randomize_params", "init_from"):
+            if values.get(name) == "":
+                values[name] = None
+        return cls(**values)
+
+
+def parse_reward_weights(text: str) -> dict[str, float]:
+    """ "energy=0.05,time=20" -> {"energy": 0.05, "time": 20.0} (the env checks the names)."""
+    weights = {}
+    for item in filter(None, (part.strip() for part in text.split(","))):
+        name, _, value = item.partition("=")
+        try:
+            weights[name.strip()] = float(value)
+        except ValueError:
+            raise ValueError(f"reward_weights: expected name=number items separated by commas, got {item!r}") from None
+    return weights
+
+
+def parse_floats(name: str, text: str, count: int) -> tuple[float, ...]:
+    """ "2.5,2.5,0.05" -> (2.5, 2.5, 0.05), exactly ``count`` numbers."""
+    try:
+        values = tuple(float(x) for x in text.split(","))
+    except ValueError:
+        values = ()
+    if len(values) != count:
+        raise ValueError(f"{name}: expected {count} numbers separated by commas, got {text!r}")
+    return values

@@ -1,0 +1,431 @@
+"""``scara-agents``: the agents' one console script.
+
+    scara-agents evaluate --policies pd dec-continue:0.06 ppo:ppo_pd --episodes 100 --out results/pd
+    scara-agents train ppo-residual --env-id Scara-C11-v0 --seed 0 --out runs/ppo_pd
+    scara-agents torch-ppo --total-timesteps 2000000 --out runs/torch_ppo
+    scara-agents campaign ppo sac td3 --seeds 0 1 2 3 4
+    scara-agents compare --runs docs/results/runs --episodes 100 --out docs/results
+    scara-agents sweep --run sac --grid learning_rate=0.0003,0.001
+    scara-agents select RUN --out models/NAME
+    scara-agents optimal --condition c11
+    scara-agents bench
+
+Each subcommand's ``--help`` says what it does. A user's mistake ends in one line
+``error: ...`` and exit status 2 (``--debug`` shows the traceback).
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import json
+import sys
+import warnings
+from pathlib import Path
+
+from agents.algorithms.sb3.hyperparams import load_hyperparams
+from agents.algorithms.sb3.policy import resolve_model
+from agents.algorithms.sb3.training import train_residual_ppo
+from agents.algorithms.torch_ppo_config import Config, parse_floats, parse_reward_weights
+from agents.experiments import sweep as sweeps
+from agents.experiments.checkpoints import select_checkpoint
+from agents.experiments.comparison import SHIELDED, compare_in_parallel
+from agents.experiments.conditions import CONDITIONS
+from agents.experiments.evaluation import COLUMNS, evaluate, learned_runs
+from agents.experiments.registry import RUNS, spec
+from agents.experiments.report import comparison_figures, comparison_markdown, evaluation_report, markdown_table
+from agents.experiments.runs import campaign, hyperparams_of, train_run
+from agents.experiments.targets import target_checks
+from agents.policies.optimal import CollocationConfig
+from agents.policies.optimal.policy import solve_reference
+from scara_gym import DEFAULT_PARAMS
+from scara_gym.registration import ENV_ID, ENV_IDS, TRAINING_ENV_ID
+
+MODES = ("pd", "voltage")
+
+
+class UserError(Exception):
+    """A mistake in a command line, reported as one line."""
+
+
+def _positive(name: str, value, allowed: str = ">= 1") -> None:
+    if value is not None and value < 1:
+        raise UserError(f"{name} must be {allowed}, got {value}")
+
+
+# -- evaluate ---------------------------------------------------------------------------------
+def _add_evaluate(sub) -> None:
+    p = sub.add_parser("evaluate", help="run policies over the same fixed seeds; tables and plots",
+                       description="Run policies over the same fixed seeds and write table.md, table.csv, "
+                                   "tip_paths.png, wall_and_height.png (and NAME_results.json per shipped PPO).")
+    p.add_argument("--policies", nargs="+", default=["pd", "dec-continue", "dec-restart"],
+                   help="policy specs: pd, dec-continue[:d], dec-restart[:d], optimal, ppo:NAME_OR_DIR, "
+                        "sb3:RUN_DIR, torchppo:RUN_DIR, shield:SPEC")
+    p.add_argument("--env-id", choices=ENV_IDS, default=ENV_ID,
+                   help="the shipped PPO agents and tables use Scara-C11-v0; the optimal reference Scara-C11-v1")
+    p.add_argument("--control-mode", choices=MODES, default="pd")
+    p.add_argument("--randomize-target", action="store_true")
+    p.add_argument("--episodes", type=int, default=100)
+    p.add_argument("--seed", type=int, default=1000, help="episode i uses seed + i")
+    p.add_argument("--out", type=Path, default=Path("results"))
+    p.set_defaults(handler=_evaluate)
+
+
+def _evaluate(args, argv) -> list[dict]:
+    _positive("--episodes", args.episodes)
+    rows, traces = evaluate(args.policies, args.control_mode, args.randomize_target, args.episodes, args.seed,
+                            env_id=args.env_id)
+    model_dirs = [resolve_model(s.split(":", 1)[1]) for s in args.policies if s.startswith("ppo:")]
+    evaluation_report(rows, traces, args.out, model_dirs)
+    for spec_, row in zip(args.policies, rows):
+        if spec_.startswith("ppo:"):  # the figures a model is tested against once shipped (its results.json)
+            name = resolve_model(spec_.split(":", 1)[1]).name
+            (args.out / f"{name}_results.json").write_text(json.dumps({
+                "seed": args.seed, "episodes": args.episodes, "randomize_target": args.randomize_target,
+                "success_rate": row["success rate"], "collision_rate": row["collision rate"],
+                "mean_time_to_target": row["mean time to target [s]"],
+                "worst_time_to_target": row["worst time to target [s]"],
+                "episodes_outcomes": row["outcomes"], "command": "scara-agents " + " ".join(argv)}, indent=2))
+
+    print(markdown_table(COLUMNS, rows))
+    return rows
+
+
+# -- train, torch-ppo, campaign ---------------------------------------------------------------
+def _yaml_value(text: str):
+    import yaml
+
+    return yaml.safe_load(text)
+
+
+def _config_value(field: dataclasses.Field, text: str):
+    """A Config field's value from its command-line text, by the field's declared type."""
+    kind = str(field.type)
+    if kind == "bool":
+        if text.lower() not in ("true", "false", "1", "0"):
+            raise UserError(f"--{field.name.replace('_', '-')} takes true or false, got {text!r}")
+        return text.lower() in ("true", "1")
+    if kind.startswith("dict"):
+        return parse_reward_weights(text)
+    if kind.startswith("tuple"):
+        return parse_floats(field.name, text, 3) if text else None
+    if kind in ("str | None",):
+        return text or None
+    try:
+        return {"int": int, "float": float, "str": str}[kind](text)
+    except ValueError:
+        raise UserError(f"--{field.name.replace('_', '-')} takes a number ({kind}), got {text!r}") from None
+
+
+def _add_train(sub) -> None:
+    p = sub.add_parser("train", help="train one registered run (resumes an interrupted one)",
+                       description="Train one seed of a registered run into --out; run again into the same "
+                                   "folder to resume. Registered runs: " + ", ".join(RUNS))
+    p.add_argument("name", choices=list(RUNS), metavar="NAME", help="a registered run (agents.experiments.registry)")
+    p.add_argument("--env-id", choices=ENV_IDS, default=TRAINING_ENV_ID)
+    p.add_argument("--control-mode", choices=MODES, default="pd")
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--out", type=Path, default=None, help="default: runs/NAME/seedN")
+    p.add_argument("--total-timesteps", type=int, default=None, help="default: the run's budget")
+    p.add_argument("--randomize-target", action="store_true",
+                   help="ppo-residual runs: targets drawn per episode (the YAML's MODE-random block)")
+    p.add_argument("--set", nargs="*", default=[], metavar="NAME=VALUE",
+                   help="hyperparameters to override (YAML block names, or torch PPO Config fields)")
+    p.set_defaults(handler=_train)
+
+
+def _train(args, argv) -> Path:
+    _positive("--total-timesteps", args.total_timesteps)
+    if args.seed < 0:
+        raise UserError(f"--seed must be an integer >= 0, got {args.seed}")
+    run = spec(args.name)
+    if args.randomize_target and run.recipe != "ppo-residual":
+        raise UserError(f"--randomize-target is for the ppo-residual runs; {args.name} is registered for "
+                        "its own targets (the random-targets runs carry the tag)")
+    overrides = {}
+    for item in args.set:
+        key, sep, value = item.partition("=")
+        if not sep or not key:
+            raise UserError(f"--set takes NAME=VALUE items, got {item!r}")
+        overrides[key] = value
+    hyper = None
+    if overrides or args.randomize_target:
+        if run.trainer == "torch-ppo":
+            fields = {f.name: f for f in dataclasses.fields(Config)}
+            unknown = sorted(set(overrides) - set(fields))
+            if unknown:
+                raise UserError(f"--set names {unknown}, which are not torch PPO Config fields; they are {sorted(fields)}")
+            hyper = {**hyperparams_of(args.name, args.env_id, args.control_mode),
+                     **{k: _config_value(fields[k], v) for k, v in overrides.items()}}
+        else:
+
+            hyper = load_hyperparams(run.recipe, args.env_id, args.control_mode, run.variant, args.randomize_target)
+            unknown = sorted(set(overrides) - set(hyper))
+            if unknown:
+                raise UserError(f"--set names {unknown} that the YAML block lacks; it has {sorted(hyper)}")
+            hyper.update({k: _yaml_value(v) for k, v in overrides.items()})
+    out = args.out or Path("runs") / args.name / f"seed{args.seed}"
+    if run.recipe == "ppo-residual":
+
+        return train_residual_ppo(args.control_mode, args.randomize_target, args.seed, args.total_timesteps, out,
+                                  hyper, progress_bar=False, env_id=args.env_id, variant=run.variant)
+    return train_run(args.name, out, args.seed, args.env_id, args.control_mode, args.total_timesteps, hyper,
+                     command="scara-agents " + " ".join(argv))
+
+
+def _add_torch_ppo(sub) -> None:
+    p = sub.add_parser("torch-ppo", help="the single-file PPO with every Config field as a flag",
+                       description="Train the single-file PPO (agents.algorithms.torch_ppo); every field of its "
+                                   "Config is a flag. reward weights as NAME=V,..., residual scale as A,B,C.")
+    for f in dataclasses.fields(Config):
+        flag = "--" + f.name.replace("_", "-")
+        if str(f.type) == "bool":
+            p.add_argument(flag, action=argparse.BooleanOptionalAction, default=f.default)
+        else:
+            p.add_argument(flag, default=None, metavar=str(f.type).upper().split(" ")[0].split("[")[0])
+    p.add_argument("--resume", action="store_true", help="continue from OUT/checkpoint.pt")
+    p.set_defaults(handler=_torch_ppo)
+
+
+def _torch_ppo(args, argv) -> dict:
+    from agents.algorithms.torch_ppo import train
+
+    values = {}
+    for f in dataclasses.fields(Config):
+        value = getattr(args, f.name)
+        if value is not None:
+            values[f.name] = value if isinstance(value, bool) else _config_value(f, value)
+    config = Config(**values)
+    for name in ("num_envs", "num_steps", "total_timesteps", "num_minibatches", "update_epochs", "hidden_size",
+                 "checkpoint_every"):
+        _positive("--" + name.replace("_", "-"), getattr(config, name))
+    summary = train(config, resume=args.resume)
+    print(json.dumps(summary, indent=2))
+    return summary
+
+
+def _shard(text: str) -> tuple[int, int]:
+    try:
+        shard, shards = (int(x) for x in text.split("/"))
+    except ValueError:
+        shard, shards = -1, 0
+    if not 0 <= shard < shards:
+        raise UserError(f"--shard must be K/N with 0 <= K < N, got {text!r}")
+    return shard, shards
+
+
+def _add_campaign(sub) -> None:
+    p = sub.add_parser("campaign", help="every registered run over seeds, resumable, shareable between workers",
+                       description="Train (or resume, or pass over finished or locked) every (seed, run) of the "
+                                   "list into RUNS/ENV_ID/MODE/NAME/seedN, or publish the finished ones.")
+    p.add_argument("names", nargs="*", metavar="NAME", default=[], help="registered runs (default: all): "
+                   + ", ".join(RUNS))
+    p.add_argument("--seeds", nargs="+", type=int, default=[0, 1, 2, 3, 4])
+    p.add_argument("--env-id", choices=ENV_IDS, default=TRAINING_ENV_ID)
+    p.add_argument("--control-mode", choices=MODES, default="pd")
+    p.add_argument("--runs", type=Path, default=Path("runs/baselines"))
+    p.add_argument("--total-timesteps", type=int, default=None, help="default: each run's budget")
+    p.add_argument("--shard", default="0/1", help="K/N: every N-th run, starting at the K-th (0-based)")
+    p.add_argument("--publish", type=Path, default=None, metavar="DEST",
+                   help="copy the finished runs of the list, model and history only, to DEST (e.g. "
+                        "docs/results/runs), instead of training")
+    p.set_defaults(handler=_campaign)
+
+
+def _campaign(args, argv) -> list[Path]:
+    if any(seed < 0 for seed in args.seeds):
+        raise UserError(f"--seeds must be integers >= 0, got {args.seeds}")
+    _positive("--total-timesteps", args.total_timesteps)
+    for name in args.names:
+        spec(name)
+    return campaign(args.names or list(RUNS), args.seeds, args.runs, args.env_id, args.control_mode,
+                    args.total_timesteps, _shard(args.shard), args.publish)
+
+
+# -- compare, sweep, select -------------------------------------------------------------------
+def _add_compare(sub) -> None:
+    p = sub.add_parser("compare", help="learned vs classical vs optimal in every condition",
+                       description="Every policy in every condition over the same seeds: comparison.json, "
+                                   "comparison.md and the figures under --out.")
+    p.add_argument("--runs", type=Path, default=Path("runs/baselines"),
+                   help="the folder of learned runs (ENV_ID/MODE/NAME/seedN)")
+    p.add_argument("--conditions", nargs="+", choices=list(CONDITIONS), default=list(CONDITIONS))
+    p.add_argument("--episodes", type=int, default=100)
+    p.add_argument("--seed", type=int, default=1000, help="episode i uses seed + i")
+    p.add_argument("--no-optimal", action="store_true", help="leave out the optimal reference")
+    p.add_argument("--out", type=Path, default=Path("docs/results"))
+    p.add_argument("--jobs", type=int, default=1, help="processes evaluating conditions side by side")
+    p.add_argument("--shield", nargs="*", default=list(SHIELDED), metavar="NAME",
+                   help="learned runs to evaluate behind the shield as well (none: --shield)")
+    p.add_argument("--cache", type=Path, default=None, metavar="DIR",
+                   help="keep learned runs' evaluations in DIR and reuse them (e.g. runs/compare-cache)")
+    p.set_defaults(handler=_compare)
+
+
+def _compare(args, argv) -> list[dict]:
+    _positive("--episodes", args.episodes)
+    _positive("--jobs", args.jobs)
+    if not args.runs.is_dir():
+        raise UserError(f"--runs: no folder {str(args.runs)!r} (the learned runs, ENV_ID/MODE/NAME/seedN)")
+    entries, traces = compare_in_parallel(args.runs, args.conditions, args.jobs, episodes=args.episodes,
+                                          seed=args.seed, include_optimal=not args.no_optimal, cache=args.cache,
+                                          shielded=tuple(args.shield))
+    args.out.mkdir(parents=True, exist_ok=True)
+    (args.out / "comparison.json").write_text(json.dumps({"env_id": TRAINING_ENV_ID,
+                                                           "command": "scara-agents " + " ".join(argv),
+                                                           "targets": target_checks(entries),
+                                                           "policies": entries}, indent=1))
+    (args.out / "comparison.md").write_text(comparison_markdown(entries))
+    comparison_figures(entries, traces, learned_runs(args.runs), args.out)
+    print(comparison_markdown(entries))
+    return entries
+
+
+def _add_sweep(sub) -> None:
+    p = sub.add_parser("sweep", help="seeds x hyperparameter grids on Ray Tune",
+                       description="Train and evaluate every (grid point, seed) of a registered run as a Ray Tune "
+                                   "trial; sweep.json and sweep.md under --out.")
+    p.add_argument("--run", choices=list(RUNS), metavar="NAME", required=True, help="a registered run")
+    p.add_argument("--env-id", choices=ENV_IDS, default=TRAINING_ENV_ID)
+    p.add_argument("--control-mode", choices=MODES, default="pd")
+    p.add_argument("--seeds", nargs="+", type=int, default=[0, 1, 2, 3, 4])
+    p.add_argument("--grid", nargs="*", default=[], metavar="NAME=V1,V2",
+                   help="hyperparameter values to cross (names of the run's YAML block or Config)")
+    p.add_argument("--condition", choices=list(CONDITIONS), default="c11", help="the evaluation condition")
+    p.add_argument("--episodes", type=int, default=100)
+    p.add_argument("--total-timesteps", type=int, default=None, help="default: the run's budget")
+    p.add_argument("--out", type=Path, default=Path("runs/sweeps/default"))
+    p.add_argument("--address", default=None, help="an existing Ray cluster (default: a local runtime)")
+    p.add_argument("--cpus-per-trial", type=float, default=1.0)
+    p.add_argument("--max-concurrent", type=int, default=None,
+                   help="trials at once (default: as many as the CPUs allow); 1 leaves the other cores free")
+    p.add_argument("--max-failures", type=int, default=2, help="retries of a failed trial")
+    p.add_argument("--publish", type=Path, default=None, metavar="DEST",
+                   help="copy the finished trials' runs to DEST/ENV_ID/MODE/NAME/seedN (e.g. docs/results/runs)")
+    p.set_defaults(handler=_sweep)
+
+
+def _sweep(args, argv) -> list[dict]:
+    _positive("--episodes", args.episodes)
+    _positive("--total-timesteps", args.total_timesteps)
+    _positive("--max-concurrent", args.max_concurrent)
+    if not args.cpus_per_trial > 0:
+        raise UserError(f"--cpus-per-trial must be > 0, got {args.cpus_per_trial}")
+    if args.max_failures < 0:
+        raise UserError(f"--max-failures must be >= 0, got {args.max_failures}")
+    grid = sweeps.parse_grid(args.grid)
+    for point in sweeps.grid_points(grid):  # bad names fail here, before Ray starts
+        sweeps.point_hyperparams(args.run, args.env_id, args.control_mode, point)
+    entries = sweeps.run_sweep(args.run, args.env_id, args.control_mode, args.seeds, grid, args.out, args.condition,
+                        args.episodes, args.total_timesteps, args.address, args.cpus_per_trial, args.max_failures,
+                        max_concurrent=args.max_concurrent)
+    print((args.out / "sweep.md").read_text())
+    if args.publish is not None:
+        sweeps.publish_trials(args.run, args.env_id, args.control_mode, args.seeds, grid, args.out, args.publish)
+    return entries
+
+
+def _add_select(sub) -> None:
+    p = sub.add_parser("select", help="ship the fastest clean checkpoint of an SB3 PPO run",
+                       description="Evaluate every checkpoint of an SB3 PPO run and copy the fastest that "
+                                   "succeeds in every episode without a collision to --out.")
+    p.add_argument("run_dir", type=Path, metavar="RUN", help="a run folder with checkpoints/ (SB3 PPO)")
+    p.add_argument("--out", type=Path, required=True)
+    p.add_argument("--episodes", type=int, default=5)
+    p.add_argument("--seed", type=int, default=5000)
+    p.set_defaults(handler=_select)
+
+
+def _select(args, argv) -> dict:
+    _positive("--episodes", args.episodes)
+    if not (args.run_dir / "config.json").exists() or not list(args.run_dir.glob("checkpoints/ppo_*_steps.zip")):
+        raise UserError(f"RUN: {str(args.run_dir)!r} holds no config.json with checkpoints/ppo_N_steps.zip")
+    return select_checkpoint(args.run_dir, args.out, args.episodes, args.seed)
+
+
+# -- optimal, bench ---------------------------------------------------------------------------
+def _add_optimal(sub) -> None:
+    p = sub.add_parser("optimal", help="the minimum-time reference by direct collocation (CasADi)",
+                       description="Solve both minimum-time problems (free and held voltages) and replay the held "
+                                   "solution in the environment; --write keeps it as a shipped solution file.")
+    p.add_argument("--start", nargs=3, type=float, default=list(DEFAULT_PARAMS.task.start))
+    p.add_argument("--target", nargs=3, type=float, default=list(DEFAULT_PARAMS.task.target))
+    p.add_argument("--write", type=Path, default=None,
+                   help="write the solutions as JSON here (the shipped file: agents/optimal_solutions/c11.json)")
+    shifts = [name for name, c in CONDITIONS.items() if not c.randomize_target]
+    p.add_argument("--condition", choices=shifts, default="c11",
+                   help="a parameter shift of the comparison; default c11, the C11 parameters")
+    p.add_argument("--wall-margin", type=float, default=CollocationConfig.wall_margin,
+                   help="m, distance the held solution keeps from the wall plane while below h_obs (default "
+                        "%(default)s; a wider one gives the torch PPO's demo resets states with slack)")
+    p.add_argument("--verbose", action="store_true")
+    p.set_defaults(handler=_optimal)
+
+
+def _optimal(args, argv) -> dict:
+    params = DEFAULT_PARAMS.replace(CONDITIONS[args.condition].params)
+    if not 0.0 <= args.wall_margin < params.obstacle.critical_distance:
+        raise UserError(f"--wall-margin must be in [0, {params.obstacle.critical_distance}) m (the critical band), "
+                        f"got {args.wall_margin}")
+    record = solve_reference(args.start, args.target, params, args.wall_margin, args.verbose)
+    data = {**record, "condition": args.condition, "overrides": CONDITIONS[args.condition].params,
+            "command": "scara-agents optimal" + (f" --start {' '.join(map(str, args.start))}"
+                                                 f" --target {' '.join(map(str, args.target))}"
+                                                 f" --condition {args.condition}")
+                       + (f" --wall-margin {args.wall_margin}" if args.wall_margin != CollocationConfig.wall_margin
+                          else "")}
+    if args.write:
+        args.write.parent.mkdir(parents=True, exist_ok=True)
+        args.write.write_text(json.dumps(data, indent=1))
+    return data
+
+
+def _add_bench(sub) -> None:
+    p = sub.add_parser("bench", help="training speed: the single-file PPO beside SB3's (and HER, GPU)",
+                       description="End-to-end PPO training steps/s on the CPU, side by side with SB3's PPO; "
+                                   "--gpu adds the GPU PPO where a CUDA device is usable, --her the HER buffer.")
+    p.add_argument("--quick", action="store_true", help="small budgets (seconds), for a smoke test")
+    p.add_argument("--her", action="store_true", help="also ms per SAC + HER update, SB3's buffer and ours")
+    p.add_argument("--gpu", action="store_true", help="also the GPU PPO (a CUDA device and the cuda extra)")
+    p.set_defaults(handler=_bench)
+
+
+def _bench(args, argv) -> str:
+    from agents.experiments import bench as agents_bench
+
+    return agents_bench.main(args.quick, args.her, args.gpu)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog="scara-agents", description="The agents of scara_gym: evaluate, train, compare, sweep.")
+    parser.add_argument("--debug", action="store_true", help="show the traceback of an error")
+    sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+    for add in (_add_evaluate, _add_train, _add_torch_ppo, _add_campaign, _add_compare, _add_sweep, _add_select,
+                _add_optimal, _add_bench):
+        add(sub)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    """The console script: runs one subcommand; 0, or exit status 2 for a user's mistake."""
+    run(argv)
+    return 0
+
+
+def run(argv: list[str] | None = None):
+    """Run one subcommand and return what it returns (its rows, entries, run folder, ...); a
+    user's mistake exits with status 2 and one line on stderr."""
+    argv = list(sys.argv[1:] if argv is None else argv)
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    with warnings.catch_warnings():
+        # the comparison's runs train and evaluate on Scara-C11-v1 on purpose (TRAINING_ENV_ID)
+        warnings.filterwarnings("ignore", message=r".*Scara-C11-v[01] is out of date", category=DeprecationWarning)
+        try:
+            return args.handler(args, argv)
+        except (UserError, ValueError, FileNotFoundError, KeyError, LookupError) as error:
+            if args.debug:
+                raise
+            message = error.args[0] if isinstance(error, KeyError) and error.args else error
+            print(f"scara-agents {args.command}: error: {message}", file=sys.stderr)
+            raise SystemExit(2) from None

@@ -1,0 +1,189 @@
+"""The one evaluation engine: policies from their specs, their episodes as per-episode arrays,
+learned runs' evaluations cached, and the plain evaluation table of ``scara-agents evaluate``.
+
+Policy specs: ``pd``; ``dec-continue[:d]`` and ``dec-restart[:d]`` (the seed's heuristic with
+trigger distance d [m]); ``ppo:NAME`` (a shipped model, e.g. ``ppo_pd``) or ``ppo:DIR``;
+``sb3:DIR`` (any SB3 run: PPO, SAC, TD3); ``torchppo:DIR`` (a run of the single-file PPO);
+``optimal`` (the minimum-time reference, "voltage" mode, best on the exact ids); ``shield:SPEC``
+(the policy of SPEC behind scara_gym.wrappers.Shield, e.g. ``shield:pd``).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import hashlib
+import json
+import pickle
+from pathlib import Path
+
+import gymnasium as gym
+import numpy as np
+
+from agents.algorithms.sb3.policy import PPOPolicy, SB3Policy
+from agents.experiments.conditions import Condition
+from agents.experiments.runs import is_finished
+from agents.policies import DecHeuristic, PDPolicy, run_episode
+from agents.policies.optimal import OptimalPolicy
+from scara_gym import __version__
+from scara_gym.registration import ENV_ID, TRAINING_ENV_ID
+from scara_gym.wrappers import Shield
+
+POLICY_SPECS = "pd, dec-continue[:d], dec-restart[:d], optimal, ppo:NAME_OR_DIR, sb3:RUN_DIR, torchppo:RUN_DIR, shield:SPEC"
+
+
+def make_policy(spec: str, env):
+    """The policy of a spec (module docstring) for ``env``."""
+    kind, _, arg = spec.partition(":")
+    if kind == "shield":
+        if not arg:
+            raise ValueError("shielded policies are given as shield:SPEC, e.g. shield:pd or shield:torchppo:RUN_DIR")
+        return Shield(env, make_policy(arg, env))
+    if kind == "pd":
+        return PDPolicy(env)
+    if kind in ("dec-continue", "dec-restart"):
+        distance = float(arg) if arg else 0.06
+        return DecHeuristic(env, variant=kind.split("-")[1], critical_distance=distance)
+    if kind in ("ppo", "sb3", "torchppo") and not arg:
+        raise ValueError(f"{kind} policies are given as {kind}:" + ("NAME (shipped) or ppo:MODEL_DIR" if kind == "ppo"
+                                                                    else "RUN_DIR"))
+    if kind == "ppo":
+
+        return PPOPolicy(env, arg)
+    if kind == "sb3":
+
+        return SB3Policy(env, arg)
+    if kind == "torchppo":
+        from agents.algorithms.torch_ppo import TorchPPOPolicy
+
+        return TorchPPOPolicy(env, arg)
+    if kind == "optimal":
+
+        return OptimalPolicy(env)
+    raise ValueError(f"unknown policy {spec!r}; use {POLICY_SPECS}")
+
+
+SUMMARY_KEYS = ("success", "collisions", "reach_time", "energy", "steps")
+
+
+def _same_episode(a: dict, b: dict) -> bool:
+    return all(a[key] == b[key] or (key == "reach_time" and np.isnan(a[key]) and np.isnan(b[key]))
+               for key in SUMMARY_KEYS)
+
+
+def episodes_of(env, policy, episodes: int, seed: int, identical: bool = False, record: int = 1) -> dict:
+    """Per-episode arrays of one policy over the seeds ``seed, seed + 1, ...``, with the traces
+    of the first ``record`` episodes ("trace": the first one's; "traces": all of them).
+    identical: the condition draws nothing per episode (fixed start, target and parameters)
+    and the policy is deterministic, so that every episode is the first one: then the first
+    two are run and, where they are the same, the first stands for all (else every episode
+    runs)."""
+    results = [run_episode(env, policy, seed=seed + i, record=i < record) for i in range(min(episodes, 2))]
+    if identical and episodes > 2 and _same_episode(*results):
+        results += [results[0]] * (episodes - 2)
+    else:
+        results += [run_episode(env, policy, seed=seed + i, record=i < record) for i in range(len(results), episodes)]
+    reach = np.array([r["reach_time"] if r["success"] else np.nan for r in results])
+    return {"success": np.array([r["success"] for r in results]),
+            "collisions": np.array([r["collisions"] > 0 for r in results]),
+            "collision_counts": np.array([r["collisions"] for r in results]),
+            "reach_time": reach, "energy": np.array([r["energy"] for r in results]),
+            "peak_current_fraction": np.array([r["peak_current_fraction"] for r in results]),
+            "return": np.array([r["return"] for r in results]),
+            "trace": results[0]["trace"], "traces": [r["trace"] for r in results[:record]]}
+
+
+POLICY_FILES = ("config.json", "model.zip", "model.pt", "vecnormalize.pkl")
+"""the files of a finished run that its policy's actions depend on"""
+
+
+def evaluation_key(run_dir: Path, condition: Condition, mode: str, episodes: int, seed: int,
+                   shield: bool = False) -> str:
+    """What a learned run's evaluation depends on: its policy's files, the condition (and the
+    environment it builds), the episodes, the package version and whether a shield acts."""
+    digest = hashlib.sha256()
+    for name in POLICY_FILES:
+        if (Path(run_dir) / name).exists():
+            digest.update(name.encode() + (Path(run_dir) / name).read_bytes())
+    if shield:
+        digest.update(b"agents.shield.Shield, defaults")  # the key as the cache was first written
+    digest.update(json.dumps([dataclasses.asdict(condition), mode, episodes, seed, TRAINING_ENV_ID, __version__],
+                             sort_keys=True).encode())
+    return digest.hexdigest()[:32]
+
+
+def learned_episodes(env, run_dir: Path, condition: Condition, mode: str, episodes: int, seed: int,
+                     identical: bool, cache: Path | None = None, shield: bool = False) -> dict:
+    """episodes_of a finished run's policy (behind scara_gym.wrappers.Shield with ``shield``),
+    from ``cache`` where it holds them (else kept there)."""
+    if cache is None:
+        return episodes_of(env, learned_policy(env, run_dir, shield), episodes, seed, identical)
+    path = Path(cache) / f"{evaluation_key(run_dir, condition, mode, episodes, seed, shield)}.pkl"
+    if path.exists():
+        return pickle.loads(path.read_bytes())
+    result = episodes_of(env, learned_policy(env, run_dir, shield), episodes, seed, identical)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    partial = path.with_suffix(".partial")
+    partial.write_bytes(pickle.dumps(result))
+    partial.replace(path)  # a comparison stopped while writing leaves no half entry
+    return result
+
+
+def learned_policy(env, run_dir: Path, shield: bool = False):
+    """The policy of a finished run: SB3's (model.zip) or the torch PPO's (model.pt); with
+    ``shield``, behind scara_gym.wrappers.Shield (its model has the nominal parameters)."""
+    if (Path(run_dir) / "model.zip").exists():
+
+        policy = SB3Policy(env, run_dir)
+    else:
+        from agents.algorithms.torch_ppo import TorchPPOPolicy
+
+        policy = TorchPPOPolicy(env, run_dir)
+    return Shield(env, policy) if shield else policy
+
+
+def learned_runs(runs_root: Path, env_id: str = TRAINING_ENV_ID) -> dict[tuple[str, str], list[Path]]:
+    """(algorithm, control mode) -> finished run folders, seed order."""
+    groups: dict[tuple[str, str], list[Path]] = {}
+    for config in sorted(Path(runs_root).glob(f"{env_id}/*/*/seed*/config.json")):
+        run = config.parent
+        if is_finished(run):  # SB3's model.zip, or the torch PPO's model.pt
+            groups.setdefault((run.parent.name, run.parent.parent.name), []).append(run)
+    for key in groups:
+        groups[key].sort(key=lambda p: int(p.name.removeprefix("seed")))
+    return groups
+
+
+COLUMNS = ("policy", "episodes", "success rate", "collision rate", "mean time to target [s]",
+           "worst time to target [s]", "energy [J]", "peak current [Imax]", "return")
+"""the columns of the plain evaluation table"""
+
+
+def summary_row(name: str, result: dict) -> dict:
+    """The plain evaluation table's row of one policy's episodes_of arrays."""
+    reach = result["reach_time"][result["success"]]
+    return {
+        "policy": name, "episodes": len(result["success"]),
+        "success rate": float(np.mean(result["success"])), "collision rate": float(np.mean(result["collisions"])),
+        "mean time to target [s]": reach.mean() if reach.size else np.nan,
+        "worst time to target [s]": reach.max() if reach.size else np.nan,
+        "energy [J]": float(np.mean(result["energy"])),
+        "peak current [Imax]": float(np.max(result["peak_current_fraction"])),
+        "return": float(np.mean(result["return"])),
+        "outcomes": [{"success": bool(s), "collisions": int(c),
+                      "reach_time": None if np.isnan(t) else float(t)}
+                     for s, c, t in zip(result["success"], result["collision_counts"], result["reach_time"])],
+    }
+
+
+def evaluate(policies: list[str], control_mode: str = "pd", randomize_target: bool = False,
+             episodes: int = 100, seed: int = 1000, record: int = 3,
+             env_id: str = ENV_ID) -> tuple[list[dict], dict]:
+    """Summary rows and recorded traces (first ``record`` episodes) per policy spec."""
+    rows, traces = [], {}
+    for spec in policies:
+        env = gym.make(env_id, control_mode=control_mode, randomize_target=randomize_target)
+        policy = make_policy(spec, env)
+        result = episodes_of(env, policy, episodes, seed, record=record)
+        traces[policy.name] = result["traces"]
+        rows.append(summary_row(policy.name, result))
+    return rows, traces

@@ -1,0 +1,148 @@
+"""The run registry: what every named training run of the project is.
+
+One table, :data:`RUNS`, keyed by the run's name (the folder name under
+``RUNS/ENV_ID/MODE/NAME/seedN``): which trainer it uses, its hyperparameters (a YAML block of
+:mod:`agents.algorithms.sb3.hyperparams`, or the torch PPO ``Config`` fields it changes), the
+run a fine-tune starts from, and tags. Training, the campaign, the comparison, the sweeps and
+the acceptance targets read these entries and their tags; none parses a name. How each
+variant came about, and its pilots, is in ``docs/experiments.md``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+TAGS = {
+    "standard": "a standard algorithm on the environment as users get it (its own reward and actions)",
+    "engineered": "an engineered agent: a shaped training reward and/or a residual set-point",
+    "residual": "acts through scara_gym.wrappers.ResidualSetpoint (a set-point around the target)",
+    "random-targets": "trained for targets drawn per episode",
+    "domain-randomized": "trained with physics and wall drawn per episode (the robustness target's agents)",
+    "energy-aware": "an energy cost in its training reward",
+    "shielded": "trained and evaluated behind scara_gym.wrappers.Shield",
+    "also-shielded": "the comparison also evaluates it behind the shield, by default",
+    "fine-tune": "starts from the same seed's finished run of its base entry",
+    "demonstrations": "learns from the optimal reference's path (reset states or behaviour cloning)",
+}
+"""every tag a run may carry, and what it says"""
+
+
+@dataclass(frozen=True)
+class RunSpec:
+    """One registered training run (its seeds are given when it is trained)."""
+
+    name: str
+    trainer: str
+    """"sb3" (agents.algorithms.sb3.training) or "torch-ppo" (agents.algorithms.torch_ppo)"""
+    description: str
+    sb3_algorithm: str | None = None
+    """SB3's algorithm class: "ppo", "sac" or "td3" (trainer "sb3")"""
+    recipe: str | None = None
+    """the hyperparameter file (agents.algorithms.sb3.hyperparams.FILES; trainer "sb3")"""
+    variant: str | None = None
+    """the YAML block "MODE-VARIANT" instead of "MODE" (trainer "sb3")"""
+    fields: dict = field(default_factory=dict)
+    """torch PPO Config fields changed from the defaults (trainer "torch-ppo")"""
+    base: str | None = None
+    """a fine-tune's base run: trained first where missing; both stages' time counts"""
+    tags: frozenset[str] = frozenset()
+
+    def __post_init__(self) -> None:
+        unknown = sorted(set(self.tags) - set(TAGS))
+        if unknown:
+            raise ValueError(f"run {self.name!r}: unknown tags {unknown}; the tags are {sorted(TAGS)}")
+        if self.trainer not in ("sb3", "torch-ppo"):
+            raise ValueError(f"run {self.name!r}: trainer must be 'sb3' or 'torch-ppo', got {self.trainer!r}")
+        if (self.base is not None) != ("fine-tune" in self.tags):
+            raise ValueError(f"run {self.name!r}: a base run and the 'fine-tune' tag go together")
+
+
+RESIDUAL = {"residual_scale": (2.5, 2.5, 0.05), "residual_deadzone": 0.5}
+"""the engineered single-file agent acts through the residual set-point around the target"""
+ENGINEERED_WEIGHTS = {"time": 20.0, "collision": 100.0, "success": 50.0}
+"""its training reward, as ppo_residual.yml's: colliding costs more than stalling a whole episode"""
+FAST_WEIGHTS = {**ENGINEERED_WEIGHTS, "time": 50.0}
+"""the time weighted 2.5x"""
+
+
+def _runs(*specs: RunSpec) -> dict[str, RunSpec]:
+    return {spec.name: spec for spec in specs}
+
+
+RUNS = _runs(
+    RunSpec("ppo", "sb3", "SB3 PPO, ppo.yml", sb3_algorithm="ppo", recipe="ppo", tags=frozenset({"standard"})),
+    RunSpec("sac", "sb3", "SB3 SAC, sac.yml", sb3_algorithm="sac", recipe="sac", tags=frozenset({"standard"})),
+    RunSpec("td3", "sb3", "SB3 TD3, td3.yml", sb3_algorithm="td3", recipe="td3", tags=frozenset({"standard"})),
+    RunSpec("ppo-residual", "sb3", "SB3 PPO through the residual set-point, ppo_residual.yml's reward",
+            sb3_algorithm="ppo", recipe="ppo-residual", tags=frozenset({"engineered", "residual"})),
+    RunSpec("ppo-residual-dr", "sb3", "ppo-residual with physics and wall drawn per episode (block pd-dr)",
+            sb3_algorithm="ppo", recipe="ppo-residual", variant="dr",
+            tags=frozenset({"engineered", "residual", "domain-randomized"})),
+    RunSpec("ppo-residual-frugal", "sb3", "ppo-residual with an energy cost in the reward (block pd-frugal)",
+            sb3_algorithm="ppo", recipe="ppo-residual", variant="frugal",
+            tags=frozenset({"engineered", "residual", "energy-aware"})),
+    RunSpec("torch-ppo", "torch-ppo", "the single-file PPO with its defaults (1M steps, the env's reward)",
+            tags=frozenset({"standard"})),
+    RunSpec("torch-ppo-dr", "torch-ppo", "the single-file PPO with physics and wall drawn per episode, 3M steps",
+            fields={"randomize_params": "all", "total_timesteps": 3_000_000},
+            tags=frozenset({"standard", "domain-randomized"})),
+    RunSpec("torch-ppo-residual-random", "torch-ppo", "engineered, targets drawn per episode, 3M steps",
+            fields={**RESIDUAL, "randomize_target": True, "reward_weights": ENGINEERED_WEIGHTS,
+                    "total_timesteps": 3_000_000},
+            tags=frozenset({"engineered", "residual", "random-targets"})),
+    RunSpec("torch-ppo-residual-dr", "torch-ppo", "engineered, physics and wall drawn per episode",
+            fields={**RESIDUAL, "randomize_params": "all", "reward_weights": ENGINEERED_WEIGHTS},
+            tags=frozenset({"engineered", "residual", "domain-randomized"})),
+    RunSpec("torch-ppo-residual-frugal", "torch-ppo", "engineered, energy weighted 0.05 per J",
+            fields={**RESIDUAL, "reward_weights": {**ENGINEERED_WEIGHTS, "energy": 0.05}},
+            tags=frozenset({"engineered", "residual", "energy-aware"})),
+    RunSpec("torch-ppo-residual-fast", "torch-ppo", "engineered, the time weighted 2.5x, 3M steps",
+            fields={**RESIDUAL, "reward_weights": FAST_WEIGHTS, "total_timesteps": 3_000_000},
+            tags=frozenset({"engineered", "residual"})),
+    RunSpec("torch-ppo-residual-fast-frugal", "torch-ppo", "-fast with energy weighted 0.03 per J, 3M steps",
+            fields={**RESIDUAL, "reward_weights": {**FAST_WEIGHTS, "energy": 0.03}, "total_timesteps": 3_000_000},
+            tags=frozenset({"engineered", "residual", "energy-aware"})),
+    RunSpec("torch-ppo-residual-random-safe", "torch-ppo", "engineered, targets drawn per episode, collisions "
+            "priced 3x, 4M steps",
+            fields={**RESIDUAL, "randomize_target": True, "reward_weights": {**ENGINEERED_WEIGHTS, "collision": 300.0},
+                    "total_timesteps": 4_000_000},
+            tags=frozenset({"engineered", "residual", "random-targets"})),
+    RunSpec("torch-ppo-residual-random-safe-fast", "torch-ppo", "-random-safe fine-tuned with the time "
+            "weighted 1.5x, 2M steps",
+            fields={**RESIDUAL, "randomize_target": True,
+                    "reward_weights": {**ENGINEERED_WEIGHTS, "time": 30.0, "collision": 300.0},
+                    "total_timesteps": 2_000_000},
+            base="torch-ppo-residual-random-safe",
+            tags=frozenset({"engineered", "residual", "random-targets", "fine-tune"})),
+    RunSpec("torch-ppo-residual-fast-rsi", "torch-ppo", "-fast with 80 % of the training episodes started on "
+            "the 8 mm optimal reference's path, entropy 0.01, 4M steps",
+            fields={**RESIDUAL, "reward_weights": FAST_WEIGHTS, "demo_resets": 0.8, "demo_wall_margin": 0.008,
+                    "ent_coef": 0.01, "total_timesteps": 4_000_000},
+            tags=frozenset({"engineered", "residual", "demonstrations"})),
+    RunSpec("torch-ppo-residual-random-replay", "torch-ppo", "-random fine-tuned for 1M steps with 30 % of the "
+            "episodes on targets it recently failed",
+            fields={**RESIDUAL, "randomize_target": True, "reward_weights": ENGINEERED_WEIGHTS,
+                    "target_replay": 0.3, "total_timesteps": 1_000_000},
+            base="torch-ppo-residual-random",
+            tags=frozenset({"engineered", "residual", "random-targets", "fine-tune", "also-shielded"})),
+    RunSpec("torch-ppo-residual-fast-shield", "torch-ppo", "-fast-frugal's reward behind the shield, in "
+            "training and evaluation, 1M steps",
+            fields={**RESIDUAL, "reward_weights": {**FAST_WEIGHTS, "energy": 0.03}, "shield": True,
+                    "total_timesteps": 1_000_000},
+            tags=frozenset({"engineered", "residual", "energy-aware", "shielded"})),
+)
+"""every registered run, in the campaign's order"""
+
+
+def spec(name: str) -> RunSpec:
+    """The registered run ``name``; an unknown name is an error that lists the registered ones."""
+    if name not in RUNS:
+        raise ValueError(f"no registered run {name!r}; the registered runs are {sorted(RUNS)}")
+    return RUNS[name]
+
+
+def tagged(tag: str) -> tuple[str, ...]:
+    """The names of the registered runs that carry ``tag``."""
+    if tag not in TAGS:
+        raise ValueError(f"unknown tag {tag!r}; the tags are {sorted(TAGS)}")
+    return tuple(name for name, s in RUNS.items() if tag in s.tags)

@@ -1,0 +1,209 @@
+"""The one report writer: Markdown tables and figures for evaluations, comparisons and sweeps."""
+
+from __future__ import annotations
+
+import csv
+from pathlib import Path
+
+import numpy as np
+
+from agents.experiments.conditions import CONDITIONS
+from agents.experiments.evaluation import COLUMNS
+from agents.experiments.statistics import interval_estimates, rate_text
+from agents.experiments.targets import target_checks
+from scara_gym import DEFAULT_PARAMS
+
+
+def _pyplot():
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+def _save(fig, path: Path, written: list[Path]) -> None:
+    plt = _pyplot()
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    written.append(path)
+
+
+def _cell(value) -> str:
+    if isinstance(value, str):
+        return value
+    if isinstance(value, (int, np.integer)):
+        return str(value)
+    return "-" if np.isnan(value) else f"{value:.4f}"
+
+
+def markdown_table(columns, rows: list[dict]) -> str:
+    """A Markdown table of ``rows`` (dicts) in ``columns``: numbers with four decimals, NaN as "-"."""
+    lines = ["| " + " | ".join(columns) + " |", "|" + "---|" * len(columns)]
+    lines += ["| " + " | ".join(_cell(row[c]) for c in columns) + " |" for row in rows]
+    return "\n".join(lines)
+
+
+def tip_paths(traces: dict[str, list[np.ndarray]], path: Path, title: str, figsize=(6.5, 6),
+              legend_size: int = 8) -> Path:
+    """The tool tip's paths in the plane beside the wall and its critical band (traces of
+    agents.policies.episode.run_episode, a list per label; "optimal" drawn thick and black)."""
+    plt = _pyplot()
+    obstacle = DEFAULT_PARAMS.obstacle
+    fig, ax = plt.subplots(figsize=figsize)
+    ax.axvspan(obstacle.x_position - obstacle.critical_distance, obstacle.x_position + obstacle.critical_distance,
+               color="0.88")
+    ax.axvline(obstacle.x_position, color="k", lw=2, label="wall (x_obs)")
+    for (label, runs), color in zip(traces.items(), plt.cm.tab10.colors):
+        optimal = label == "optimal"
+        for k, trace in enumerate(runs):
+            ax.plot(trace[:, 1], trace[:, 2], color="k" if optimal else color, lw=2.5 if optimal else 1.1,
+                    label=label if k == 0 else None)
+    ax.set(xlabel="x [m]", ylabel="y [m]", title=title, aspect="equal")
+    ax.legend(fontsize=legend_size)
+    written: list[Path] = []
+    _save(fig, path, written)
+    return path
+
+
+def evaluation_report(rows: list[dict], traces: dict, out: Path, model_dirs: list[Path]) -> list[Path]:
+    """``scara-agents evaluate``'s outputs under ``out``: table.md, table.csv, tip_paths.png,
+    wall_and_height.png and, for models with evaluation logs, learning_curves.png."""
+    plt = _pyplot()
+    out.mkdir(parents=True, exist_ok=True)
+    (out / "table.md").write_text(markdown_table(COLUMNS, rows) + "\n")
+    with open(out / "table.csv", "w", newline="") as f:
+        writer = csv.DictWriter(f, fieldnames=COLUMNS, extrasaction="ignore")
+        writer.writeheader()
+        writer.writerows(rows)
+    written = [out / "table.md", out / "table.csv",
+               tip_paths(traces, out / "tip_paths.png", "Tool-tip paths (first episodes)")]
+    obs = DEFAULT_PARAMS.obstacle
+    fig, (top, bottom) = plt.subplots(2, 1, sharex=True, figsize=(7, 6))
+    for (name, runs), color in zip(traces.items(), plt.cm.tab10.colors):
+        trace = runs[0]
+        top.plot(trace[:, 0], trace[:, 3], color=color, label=name)
+        bottom.plot(trace[:, 0], trace[:, 5], color=color, label=name)
+    top.axhspan(-obs.critical_distance, obs.critical_distance, color="0.88")
+    top.axhline(0, color="k", lw=1)
+    top.set(ylabel="x_tip - x_obs [m]", title="Distance to the wall and height (first episode; seed Fig. 4, 6, 7)")
+    bottom.axhline(obs.height, color="k", lw=1, label="h_obs")
+    bottom.set(xlabel="t [s]", ylabel="q3 [m]")
+    top.legend(fontsize=8)
+    _save(fig, out / "wall_and_height.png", written)
+
+    curves = [(d, np.load(d / "eval" / "evaluations.npz")) for d in model_dirs
+              if (d / "eval" / "evaluations.npz").exists()]
+    if curves:
+        fig, ax = plt.subplots(figsize=(7, 4))
+        for model_dir, data in curves:
+            mean = data["results"].mean(axis=1)
+            ax.plot(data["timesteps"], mean, label=model_dir.name)
+        ax.set(xlabel="environment steps", ylabel="mean evaluation return", title="PPO learning curves")
+        ax.legend()
+        _save(fig, out / "learning_curves.png", written)
+    return written
+
+
+def comparison_markdown(entries: list[dict]) -> str:
+    """The comparison's report: the targets, the overview and one table per condition."""
+    met = {True: "yes", False: "**no**", None: "-"}
+    rows = [{"target": c["target"], "met": met[c["met"]], "reached": c["reached"]} for c in target_checks(entries)]
+    lines = ["#### Targets", "", markdown_table(("target", "met", "reached"), rows), ""]
+    return "\n".join(lines) + "\n" + overview(entries) + "\n" + condition_tables(entries)
+
+
+def overview(entries: list[dict]) -> str:
+    """Every policy across the conditions: time to target (IQM), with (success rate / collision
+    rate) where not every episode succeeds without a collision; "-" where none succeeds."""
+    conditions = list(dict.fromkeys(e["condition"] for e in entries))
+    lines = ["#### Overview: time to target, IQM (success rate / collision rate where not 1 / 0)", "",
+             "| policy | " + " | ".join(conditions) + " |", "|---|" + "---|" * len(conditions)]
+    for name in dict.fromkeys(e["name"].split(" (d=")[0] for e in entries):
+        cells = []
+        for condition in conditions:
+            found = [e for e in entries if e["condition"] == condition and e["name"].split(" (d=")[0] == name]
+            if not found:
+                cells.append("n/a")
+                continue
+            e = found[0]
+            time_text = "-" if e["success_rate"] == 0 else f"{e['time_iqm']:.3f} s"
+            clean = e["success_rate"] == 1.0 and e["collision_rate"] == 0.0
+            cells.append(time_text if clean else f"{time_text} ({rate_text(e['success_rate'])} / {rate_text(e['collision_rate'])})")
+        lines.append(f"| {name} | " + " | ".join(cells) + " |")
+    return "\n".join(lines) + "\n"
+
+
+def condition_tables(entries: list[dict]) -> str:
+    """One table per condition (and every seed of the learned entries): the comparison's format."""
+    lines = []
+    for name in dict.fromkeys(e["condition"] for e in entries):
+        lines += [f"#### {name}: {CONDITIONS[name].description}", "",
+                  "| policy | kind | mode | seeds | episodes | success | collisions | time to target, IQM [95 % CI] (s) "
+                  "| energy (J) | P(faster than heuristic) |", "|---|---|---|---|---|---|---|---|---|---|"]
+        for e in (e for e in entries if e["condition"] == name):
+            seeds = "-" if e["seeds"] is None else ",".join(map(str, e["seeds"]))
+            p = e.get("probability_faster_than_heuristic")
+            p_text = "-" if p is None else f"{p:.2f} [{e['probability_faster_ci'][0]:.2f}, {e['probability_faster_ci'][1]:.2f}]"
+            lines.append(f"| {e['name']} | {e['kind']} | {e['control_mode']} | {seeds} | {e['episodes']} | "
+                         f"{rate_text(e['success_rate'])} | {rate_text(e['collision_rate'])} | {e['time_iqm']:.4f} "
+                         f"[{e['time_ci'][0]:.4f}, {e['time_ci'][1]:.4f}] | {e['energy_mean']:.1f} | {p_text} |")
+        per_seed = [e for e in entries if e["condition"] == name and e.get("per_seed")]
+        if per_seed:
+            lines += ["", "Every seed (success, collisions, mean time of the successful episodes, energy):", ""]
+            for e in per_seed:
+                cells = [f"seed {s['seed']}: {rate_text(s['success_rate'])} / {rate_text(s['collision_rate'])} / "
+                         + ("-" if s["time_mean"] is None else f"{s['time_mean']:.4f} s") + f" / {s['energy_mean']:.0f} J"
+                         for s in e["per_seed"]]
+                lines.append(f"- {e['name']}: " + "; ".join(cells))
+        lines.append("")
+    return "\n".join(lines)
+
+
+def comparison_figures(entries: list[dict], traces: dict, groups: dict, out: Path) -> list[Path]:
+    """The comparison's figures under ``out``: tip paths, time against energy, learning curves."""
+    plt = _pyplot()
+
+    written = []
+    if "c11" in traces:
+        written.append(tip_paths({label: [trace] for label, trace in traces["c11"].items()},
+                                 out / "comparison_tip_paths.png", "Tip paths on the C11 target (learned: first seed)",
+                                 figsize=(6.5, 6), legend_size=7))
+
+        fig, ax = plt.subplots(figsize=(7, 4.5))
+        for e, color in zip([e for e in entries if e["condition"] == "c11"], plt.cm.tab10.colors):
+            ax.errorbar(e["time_iqm"], e["energy_mean"], xerr=[[e["time_iqm"] - e["time_ci"][0]],
+                                                              [e["time_ci"][1] - e["time_iqm"]]],
+                        fmt="o", color=color, label=e["name"])
+            for s in e.get("per_seed", []):
+                if s["time_mean"] is not None:
+                    ax.plot(s["time_mean"], s["energy_mean"], ".", color=color, alpha=0.6)
+        ax.set(xlabel="time to target [s] (IQM, 95 % CI; dots: seeds)", ylabel="electrical energy [J]",
+               title="Time against energy, C11 target", yscale="log")
+        ax.legend(fontsize=7)
+        _save(fig, out / "comparison_time_energy.png", written)
+
+    curves = {}
+    for (algorithm, mode), run_dirs in sorted(groups.items()):
+        data = [np.load(d / "eval" / "evaluations.npz") for d in run_dirs if (d / "eval" / "evaluations.npz").exists()]
+        data = [d for d in data if len(d["timesteps"])]
+        if data:
+            n = min(len(d["timesteps"]) for d in data)
+            curves[f"{algorithm} ({mode})"] = (data[0]["timesteps"][:n], np.array([d["results"][:n].mean(axis=1) for d in data]))
+    if curves:
+        from rliable import metrics
+
+        fig, ax = plt.subplots(figsize=(7, 4))
+        for (label, (steps, returns)), color in zip(curves.items(), plt.cm.tab10.colors):
+            point, interval = interval_estimates(
+                {label: returns[:, None, :]},
+                lambda s: np.array([metrics.aggregate_iqm(s[:, :, t]) for t in range(s.shape[-1])]), 500, 0)
+            ax.plot(steps, point[label], color=color, label=f"{label}, {returns.shape[0]} seeds")
+            ax.fill_between(steps, interval[label][0], interval[label][1], color=color, alpha=0.2)
+        ax.set(xlabel="environment steps", ylabel="evaluation return (IQM over seeds, 95 % CI)",
+               title="Learning curves", xscale="log")
+        ax.legend(fontsize=8)
+        _save(fig, out / "comparison_learning_curves.png", written)
+    return written

@@ -1,0 +1,158 @@
+"""Training runs on disk: where a registered run lives, its lock, training it, publishing it.
+
+Runs land in ``RUNS/ENV_ID/MODE/NAME/seedN`` (NAME: an entry of
+:data:`agents.experiments.registry.RUNS`). A finished run is skipped; an interrupted one
+resumes from its snapshot or checkpoint, so a campaign (``scara-agents campaign``) can be
+stopped and started again, across sessions. Each run is locked (``RUN/.lock``) by the process
+training it, and a worker passes over runs that are finished or locked, so that workers started
+side by side share a list. :func:`publish` copies a finished run with only what evaluating it
+needs (the model, its normalizer, config and evaluation history; no snapshots, checkpoints or
+logs), so that results can be committed (``docs/results/runs``) and outlive the machine that
+trained them.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import fcntl
+import json
+import shutil
+import time
+from pathlib import Path
+
+from agents.algorithms.sb3.hyperparams import load_hyperparams
+from agents.algorithms.sb3.training import train as train_sb3, train_residual_ppo
+from agents.algorithms.torch_ppo_config import Config
+from agents.experiments.registry import RunSpec, spec
+from scara_gym.registration import TRAINING_ENV_ID
+
+
+def run_dir(runs: Path, env_id: str, control_mode: str, name: str, seed: int) -> Path:
+    """Where seed ``seed`` of the registered run ``name`` lives under ``runs``."""
+    return Path(runs) / env_id / control_mode / name / f"seed{seed}"
+
+
+@contextlib.contextmanager
+def run_lock(out: Path):
+    """Yields True while this process holds the run's lock, False if another one does."""
+    out.mkdir(parents=True, exist_ok=True)
+    with open(out / ".lock", "w") as handle:
+        try:
+            fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            yield False
+            return
+        try:
+            yield True
+        finally:
+            fcntl.flock(handle, fcntl.LOCK_UN)
+
+
+PUBLISHED = ("config.json", "summary.json", "model.zip", "model.pt", "vecnormalize.pkl", "evaluation.npz",
+             "eval/evaluations.npz")
+"""the files of a finished run that evaluating and plotting it need (the comparison)"""
+
+
+def is_finished(run: Path) -> bool:
+    """A run folder that holds a trained model (SB3's model.zip, or the torch PPO's model.pt
+    with the summary.json it writes at the end: its model.pt is also a checkpoint)."""
+    run = Path(run)
+    return (run / "config.json").exists() and (
+        (run / "model.zip").exists() or ((run / "model.pt").exists() and (run / "summary.json").exists()))
+
+
+def publish(run: Path, dest: Path) -> Path:
+    """Copy a finished run's PUBLISHED files from ``run`` to ``dest`` (made, or refreshed)."""
+    run, dest = Path(run), Path(dest)
+    if not is_finished(run):
+        raise ValueError(f"{run} is not a finished run (no config.json with model.zip or model.pt)")
+    for name in PUBLISHED:
+        if (run / name).exists():
+            (dest / name).parent.mkdir(parents=True, exist_ok=True)
+            shutil.copy2(run / name, dest / name)
+    return dest
+
+
+def hyperparams_of(name: str, env_id: str = TRAINING_ENV_ID, control_mode: str = "pd") -> dict:
+    """What a run of the registered ``name`` trains with: its YAML block (SB3), or every field of
+    the torch PPO Config it gets but the run's identity (env, mode, seed, folder)."""
+    run = spec(name)
+    if run.trainer == "sb3":
+
+        return load_hyperparams(run.recipe, env_id, control_mode, run.variant)
+    fields = Config(**run.fields).to_dict()
+    for name_ in ("env_id", "control_mode", "seed", "out"):
+        fields.pop(name_)
+    return fields
+
+
+def train_run(name: str, out: Path, seed: int, env_id: str = TRAINING_ENV_ID, control_mode: str = "pd",
+              total_timesteps: int | None = None, hyperparams: dict | None = None,
+              command: str | None = None) -> Path:
+    """Train (or resume, or find finished) one run of the registered ``name`` into ``out``;
+    hyperparams: what to train with (default: hyperparams_of)."""
+    run = spec(name)
+    if run.trainer == "torch-ppo":
+        return _train_torch_ppo(run, Path(out), seed, env_id, control_mode, total_timesteps, hyperparams)
+    if run.recipe == "ppo-residual":
+
+        return train_residual_ppo(control_mode, seed=seed, total_timesteps=total_timesteps, out=out,
+                                  hyperparams=hyperparams, progress_bar=False, env_id=env_id, variant=run.variant)
+
+    return train_sb3(run.sb3_algorithm, out, env_id, control_mode, seed, hyperparams=hyperparams,
+                 total_timesteps=total_timesteps, command=command)
+
+
+def _train_torch_ppo(run: RunSpec, out: Path, seed: int, env_id: str, control_mode: str,
+                     total_timesteps: int | None, hyperparams: dict | None) -> Path:
+    from agents.algorithms.torch_ppo import train
+
+    if is_finished(out):  # else a resumed, finished run would overwrite its summary
+        return out
+    fields = dict(run.fields) if hyperparams is None else dict(hyperparams)
+    if total_timesteps:
+        fields["total_timesteps"] = total_timesteps
+    base = out.parent.parent / run.base / out.name if run.base is not None else None
+    if base is not None:
+        train_run(run.base, base, seed, env_id, control_mode, total_timesteps)
+        fields["init_from"] = str(base)
+    config = Config.from_dict({**fields, "env_id": env_id, "control_mode": control_mode, "seed": seed,
+                               "torch_threads": 1, "out": str(out)})
+    train(config, resume=True)
+    if base is not None:
+        record = json.loads((out / "config.json").read_text())
+        record["base_train_seconds"] = json.loads((base / "config.json").read_text())["train_seconds"]
+        (out / "config.json").write_text(json.dumps(record, indent=2))
+    return out
+
+
+def campaign(names: list[str], seeds: list[int], runs: Path, env_id: str = TRAINING_ENV_ID,
+             control_mode: str = "pd", total_timesteps: int | None = None, shard: tuple[int, int] = (0, 1),
+             publish_to: Path | None = None) -> list[Path]:
+    """Every (seed, name) of the plan, or every ``shard[1]``-th from the ``shard[0]``-th: trained
+    (or resumed, or found finished) where no other process holds its lock; with ``publish_to``,
+    the finished ones published there instead of training. Returns the run folders done."""
+    plan = [(name, seed) for seed in seeds for name in names][shard[0]::shard[1]]
+    done = []
+    for name, seed in plan:
+        run = run_dir(runs, env_id, control_mode, name, seed)
+        if publish_to is not None:
+            if is_finished(run):
+                done.append(publish(run, run_dir(publish_to, env_id, control_mode, name, seed)))
+                print(f"{name} seed {seed}: published to {done[-1]}", flush=True)
+            else:
+                print(f"{name} seed {seed}: not finished, not published", flush=True)
+            continue
+        started = time.perf_counter()
+        with run_lock(run) as mine:
+            if not mine:
+                print(f"{name} seed {seed}: trained by another process, passed over", flush=True)
+                continue
+            command = (f"scara-agents campaign --runs-of {name} --seeds {seed} --env-id {env_id} "
+                       f"--control-mode {control_mode} --runs {runs}")
+            out = train_run(name, run, seed, env_id, control_mode, total_timesteps, command=command)
+        config = json.loads((out / "config.json").read_text())
+        print(f"{name} seed {seed}: {out} ({config['train_seconds']:.0f} s of training, "
+              f"{time.perf_counter() - started:.0f} s in this call)", flush=True)
+        done.append(out)
+    return done

@@ -1,0 +1,87 @@
+"""scara-agents: every subcommand answers --help, and runs one tiny invocation (or refuses a bad one in one line)."""
+
+import json
+import subprocess
+import sys
+
+import pytest
+
+from agents.cli import build_parser, run
+
+SUBCOMMANDS = ("evaluate", "train", "torch-ppo", "campaign", "compare", "sweep", "select", "optimal", "bench")
+
+
+def test_the_parser_has_exactly_the_documented_subcommands():
+    actions = [a for a in build_parser()._actions if a.dest == "command"]
+    assert tuple(actions[0].choices) == SUBCOMMANDS
+
+
+@pytest.mark.parametrize("command", SUBCOMMANDS)
+def test_every_subcommand_answers_help(command, capsys):
+    with pytest.raises(SystemExit) as exit_:
+        run([command, "--help"])
+    assert exit_.value.code == 0
+    assert f"scara-agents {command}" in capsys.readouterr().out
+
+
+def test_the_console_script_is_installed_and_runs():
+    done = subprocess.run([sys.executable, "-m", "agents", "--help"], capture_output=True, text=True)
+    assert done.returncode == 0 and "campaign" in done.stdout
+
+
+@pytest.mark.parametrize("argv, says", [
+    (["train", "torch-ppo", "--set", "hidden_sise=3"], "not torch PPO Config fields"),
+    (["train", "sac", "--randomize-target"], "--randomize-target is for the ppo-residual runs"),
+    (["campaign", "no-such-run"], "no registered run 'no-such-run'"),
+    (["compare", "--runs", "/nonexistent"], "--runs: no folder"),
+    (["compare", "--episodes", "0"], "--episodes must be >= 1"),
+    (["sweep", "--run", "ppo", "--grid", "learning_rat=0.1"], "does not have|do not have"),
+    (["select", "/nonexistent", "--out", "x"], "holds no config.json"),
+    (["optimal", "--wall-margin", "0.5"], "--wall-margin must be in"),
+    (["evaluate", "--policies", "nonsense"], "unknown policy 'nonsense'"),
+])
+def test_a_mistake_is_one_line_and_exit_status_2(argv, says, capsys, tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    with pytest.raises(SystemExit) as exit_:
+        run(argv)
+    assert exit_.value.code == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "error:" in err and "Traceback" not in err
+    import re
+    assert re.search(says, err), err
+    assert list(tmp_path.iterdir()) == []  # nothing left behind
+
+
+def test_evaluate_runs_the_classical_policies(tmp_path, capsys):
+    rows = run(["evaluate", "--policies", "pd", "dec-restart:0.07", "--episodes", "1", "--out", str(tmp_path)])
+    assert [r["policy"] for r in rows] == ["pd", "dec-restart (d=0.07 m)"]
+    assert (tmp_path / "table.md").exists() and "| pd | 1 |" in capsys.readouterr().out
+
+
+@pytest.mark.slow
+def test_train_campaign_and_compare_run_tiny(tmp_path):
+    pytest.importorskip("rliable")
+    runs = tmp_path / "runs"
+    out = runs / "Scara-C11-v1" / "pd" / "torch-ppo" / "seed0"
+    run(["train", "torch-ppo", "--out", str(out), "--total-timesteps", "16",
+         "--set", "num_envs=2", "num_steps=8", "num_minibatches=1", "update_epochs=1", "reward_weights=time=20"])
+    config = json.loads((out / "config.json").read_text())
+    assert config["global_step"] == 16 and config["reward_weights"] == {"time": 20.0}
+    assert run(["campaign", "torch-ppo", "--seeds", "0", "--runs", str(runs)]) == [out]  # finished: found
+    published = tmp_path / "published"
+    assert len(run(["campaign", "torch-ppo", "--seeds", "0", "--runs", str(runs), "--publish", str(published)])) == 1
+    entries = run(["compare", "--runs", str(published), "--conditions", "wall-closer", "--episodes", "2",
+                   "--no-optimal", "--shield", "--out", str(tmp_path / "cmp")])
+    assert [e["name"] for e in entries][-1] == "torch-ppo" and entries[-1]["tags"] == ["standard"]
+    assert (tmp_path / "cmp" / "comparison.json").exists()
+    summary = run(["torch-ppo", "--num-envs", "2", "--num-steps", "8", "--num-minibatches", "1", "--update-epochs",
+                   "1", "--total-timesteps", "16", "--residual-scale", "2.5,2.5,0.05", "--out", str(tmp_path / "t")])
+    assert summary["global_step"] == 16
+    assert json.loads((tmp_path / "t" / "config.json").read_text())["residual_scale"] == [2.5, 2.5, 0.05]
+
+
+@pytest.mark.slow
+def test_bench_quick_reports_both_ppos(capsys):
+    pytest.importorskip("stable_baselines3")
+    text = run(["bench", "--quick"])
+    assert "the single-file PPO" in text and "stable-baselines3 PPO" in text and "ratio" in text
