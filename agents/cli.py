@@ -36,6 +36,7 @@ from agents.experiments.registry import RUNS, spec
 from agents.experiments.report import comparison_figures, comparison_markdown, evaluation_report, markdown_table
 from agents.experiments.runs import campaign, hyperparams_of, train_run
 from agents.experiments.targets import target_checks
+from agents.files import RunLocked
 from agents.policies.optimal import CollocationConfig
 from agents.policies.optimal.policy import solve_reference
 from scara_gym import DEFAULT_PARAMS
@@ -196,6 +197,8 @@ def _torch_ppo(args, argv) -> dict:
         if value is not None:
             values[f.name] = value if isinstance(value, bool) else _config_value(f, value)
     config = Config(**values)
+    if args.resume and not (Path(config.out) / "checkpoint.pt").exists():
+        raise UserError(f"--resume: {config.out} holds no checkpoint.pt to resume from")
     for name in ("num_envs", "num_steps", "total_timesteps", "num_minibatches", "update_epochs", "hidden_size",
                  "checkpoint_every"):
         _positive("--" + name.replace("_", "-"), getattr(config, name))
@@ -423,7 +426,7 @@ def run(argv: list[str] | None = None):
         warnings.filterwarnings("ignore", message=r".*Scara-C11-v[01] is out of date", category=DeprecationWarning)
         try:
             return args.handler(args, argv)
-        except (UserError, ValueError, FileNotFoundError, KeyError, LookupError) as error:
+        except (UserError, ValueError, FileNotFoundError, KeyError, LookupError, RunLocked) as error:
             if args.debug:
                 raise
             message = error.args[0] if isinstance(error, KeyError) and error.args else error

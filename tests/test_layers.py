@@ -10,7 +10,7 @@ import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
 PACKAGES = ("scara_gym", "agents")
-AGENT_LAYERS = ("agents.policies", "agents.algorithms", "agents.experiments", "agents.cli")
+AGENT_LAYERS = ("agents.files", "agents.policies", "agents.algorithms", "agents.experiments", "agents.cli")
 """the agents' layers, lowest first: each may import the ones before it, never after"""
 OPTIONAL = {"torch", "stable_baselines3", "casadi", "ray", "rliable", "matplotlib", "yaml", "numba.cuda"}
 """third-party packages of the install extras: a module importing one at its top may be imported

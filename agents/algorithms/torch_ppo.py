@@ -31,6 +31,7 @@ from torch import nn
 
 from agents.algorithms.torch_ppo_config import Config
 from agents.algorithms.torch_ppo_hooks import Hook, hooks_for
+from agents.files import exclusive, load_torch, save_torch, write_json
 from scara_gym.wrappers import ResidualSetpoint, Shield
 
 LOG_SQRT_2PI = 0.5 * float(np.log(2 * np.pi))
@@ -230,12 +231,22 @@ def tensor(x, device) -> torch.Tensor:
 
 def train(config: Config, resume: bool = False, hooks: list[Hook] | None = None) -> dict:
     """Train, checkpointing every config.checkpoint_every updates; returns the run's summary.
-    hooks: the research add-ons the loop calls (default: those config's add-on fields ask for,
-    agents.algorithms.torch_ppo_hooks.hooks_for)."""
+    resume: continue from the folder's checkpoint where it has one (else start afresh); without
+    it a folder that holds a run already is refused. The folder is locked for the whole run
+    (agents.files.exclusive). hooks: the research add-ons the loop calls (default: those
+    config's add-on fields ask for, agents.algorithms.torch_ppo_hooks.hooks_for)."""
+    out = Path(config.out)
+    with exclusive(out):
+        if not resume and any((out / name).exists() for name in ("checkpoint.pt", "model.pt", "summary.json")):
+            raise ValueError(f"out: {out} holds a run already; resume=True (--resume) continues it, or give "
+                             "another folder")
+        return _train(config, resume, hooks)
+
+
+def _train(config: Config, resume: bool, hooks: list[Hook] | None) -> dict:
     from torch.utils.tensorboard import SummaryWriter
 
     out = Path(config.out)
-    out.mkdir(parents=True, exist_ok=True)
     if config.torch_threads:
         torch.set_num_threads(config.torch_threads)
     torch.manual_seed(config.seed)
@@ -257,7 +268,7 @@ def train(config: Config, resume: bool = False, hooks: list[Hook] | None = None)
     start_update, global_step, train_seconds = 1, 0, 0.0
     checkpoint = out / "checkpoint.pt"
     if resume and checkpoint.exists():
-        state = torch.load(checkpoint, map_location=device, weights_only=False)
+        state = load_torch(checkpoint, map_location=device)
         agent.load_state_dict(state["agent"])
         optimizer.load_state_dict(state["optimizer"])
         return_rms.load_state_dict(state["return_rms"])
@@ -269,7 +280,7 @@ def train(config: Config, resume: bool = False, hooks: list[Hook] | None = None)
             agent.actor_logstd.fill_(config.init_log_std)
         for hook in hooks:
             hook.before_training(agent)
-    (out / "config.json").write_text(json.dumps(config.to_dict(), indent=2))
+    write_json(out / "config.json", config.to_dict())
     writer = SummaryWriter(str(out / "tb"))
 
     def minibatch_update(obs, actions, old_logprobs, advantages, returns, with_stats=False):
@@ -394,7 +405,7 @@ def train(config: Config, resume: bool = False, hooks: list[Hook] | None = None)
             writer.add_scalar("charts/collision_rate", float(np.mean(finished["collision"])), global_step)
         if update % config.checkpoint_every == 0 or update == num_updates:
             save(agent, out)
-            torch.save({"agent": agent.state_dict(), "optimizer": optimizer.state_dict(),
+            save_torch({"agent": agent.state_dict(), "optimizer": optimizer.state_dict(),
                         "return_rms": return_rms.state_dict(), "update": update, "global_step": global_step,
                         "train_seconds": elapsed}, checkpoint)
             recent = {k: v[-100:] for k, v in finished.items()}
@@ -407,15 +418,15 @@ def train(config: Config, resume: bool = False, hooks: list[Hook] | None = None)
     summary = {"global_step": global_step, "train_seconds": elapsed,
                "steps_per_second": (global_step - (start_update - 1) * config.batch_size)
                / max(time.perf_counter() - started, 1e-9)}
-    (out / "summary.json").write_text(json.dumps(summary, indent=2))
+    write_json(out / "summary.json", summary)
     # the run's record, as the SB3 trainer writes it: what the comparison reads
-    (out / "config.json").write_text(json.dumps({**config.to_dict(), "algo": "torch-ppo", **summary}, indent=2))
+    write_json(out / "config.json", {**config.to_dict(), "algo": "torch-ppo", **summary})
     return summary
 
 
 def save(agent: Agent, out: Path) -> None:
     """model.pt: what TorchPPOPolicy needs (weights with the normalizer, sizes)."""
-    torch.save({"state_dict": {k: v.cpu() for k, v in agent.state_dict().items()},
+    save_torch({"state_dict": {k: v.cpu() for k, v in agent.state_dict().items()},
                 "obs_size": agent.obs_rms.mean.shape[0], "action_size": agent.actor_logstd.shape[0],
                 "hidden_size": agent.weights[0].shape[-1], "clip_obs": agent.clip_obs}, out / "model.pt")
 
@@ -425,7 +436,7 @@ def load_weights(agent: Agent, run_dir: Path) -> None:
     (Config.init_from); the optimizer and the reward scale start afresh."""
     if not (run_dir / "model.pt").exists():
         raise FileNotFoundError(f"init_from: no model.pt in {str(run_dir)!r}; give a folder written by scara-agents torch-ppo")
-    saved = torch.load(run_dir / "model.pt", map_location="cpu", weights_only=False)
+    saved = load_torch(run_dir / "model.pt")
     mine = (agent.obs_rms.mean.shape[0], agent.actor_logstd.shape[0], agent.weights[0].shape[-1])
     theirs = (saved["obs_size"], saved["action_size"], saved["hidden_size"])
     if mine != theirs:
@@ -446,7 +457,7 @@ class TorchPPOPolicy:
         if run_config.control_mode != unwrapped.control_mode:
             raise ValueError(f"{run_dir} was trained in {run_config.control_mode!r} mode, "
                              f"the environment is in {unwrapped.control_mode!r} mode")
-        saved = torch.load(run_dir / "model.pt", map_location="cpu", weights_only=False)
+        saved = load_torch(run_dir / "model.pt")
         self.agent = Agent(saved["obs_size"], saved["action_size"], saved["hidden_size"], saved["clip_obs"])
         self.agent.load_state_dict(saved["state_dict"])
         self.agent.eval()

@@ -19,6 +19,7 @@ from pathlib import Path
 import gymnasium as gym
 
 from agents.algorithms.sb3.policy import PPOPolicy
+from agents.files import write_json
 from agents.policies import run_episode
 from scara_gym.registration import ENV_ID
 
@@ -69,5 +70,5 @@ def select_checkpoint(run: Path, out: Path, episodes: int = 5, seed: int = 5000)
     config["selection"] = (f"fastest checkpoint with success in all {episodes} episodes (seeds "
                            f"{seed}..) and no collision, by scara-agents select")
     config["checkpoints"] = rows
-    (out / "config.json").write_text(json.dumps(config, indent=2))
+    write_json(out / "config.json", config)
     return best

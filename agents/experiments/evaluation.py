@@ -13,7 +13,6 @@ from __future__ import annotations
 import dataclasses
 import hashlib
 import json
-import pickle
 from pathlib import Path
 
 import gymnasium as gym
@@ -22,6 +21,7 @@ import numpy as np
 from agents.algorithms.sb3.policy import PPOPolicy, SB3Policy
 from agents.experiments.conditions import Condition
 from agents.experiments.runs import is_finished
+from agents.files import load_arrays, save_arrays
 from agents.policies import DecHeuristic, PDPolicy, run_episode
 from agents.policies.optimal import OptimalPolicy
 from scara_gym import __version__
@@ -117,14 +117,24 @@ def learned_episodes(env, run_dir: Path, condition: Condition, mode: str, episod
     from ``cache`` where it holds them (else kept there)."""
     if cache is None:
         return episodes_of(env, learned_policy(env, run_dir, shield), episodes, seed, identical)
-    path = Path(cache) / f"{evaluation_key(run_dir, condition, mode, episodes, seed, shield)}.pkl"
+    path = Path(cache) / f"{evaluation_key(run_dir, condition, mode, episodes, seed, shield)}.npz"
     if path.exists():
-        return pickle.loads(path.read_bytes())
+        return _from_arrays(load_arrays(path))
     result = episodes_of(env, learned_policy(env, run_dir, shield), episodes, seed, identical)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    partial = path.with_suffix(".partial")
-    partial.write_bytes(pickle.dumps(result))
-    partial.replace(path)  # a comparison stopped while writing leaves no half entry
+    save_arrays(path, _to_arrays(result))  # whole or not at all: a stopped comparison leaves no half entry
+    return result
+
+
+def _to_arrays(result: dict) -> dict[str, np.ndarray]:
+    """episodes_of's result as plain arrays (its traces numbered)."""
+    arrays = {k: v for k, v in result.items() if k != "traces"}
+    arrays.update({f"traces_{i}": trace for i, trace in enumerate(result["traces"])})
+    return arrays
+
+
+def _from_arrays(arrays: dict[str, np.ndarray]) -> dict:
+    result = {k: v for k, v in arrays.items() if not k.startswith("traces_")}
+    result["traces"] = [arrays[f"traces_{i}"] for i in range(sum(k.startswith("traces_") for k in arrays))]
     return result
 
 

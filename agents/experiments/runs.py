@@ -4,8 +4,8 @@ Runs land in ``RUNS/ENV_ID/MODE/NAME/seedN`` (NAME: an entry of
 :data:`agents.experiments.registry.RUNS`). A finished run is skipped; an interrupted one
 resumes from its snapshot or checkpoint, so a campaign (``scara-agents campaign``) can be
 stopped and started again, across sessions. Each run is locked (``RUN/.lock``) by the process
-training it, and a worker passes over runs that are finished or locked, so that workers started
-side by side share a list. :func:`publish` copies a finished run with only what evaluating it
+training it (agents.files.exclusive, which every trainer takes too), and a worker passes over
+runs that are finished or locked, so that workers started side by side share a list. :func:`publish` copies a finished run with only what evaluating it
 needs (the model, its normalizer, config and evaluation history; no snapshots, checkpoints or
 logs), so that results can be committed (``docs/results/runs``) and outlive the machine that
 trained them.
@@ -13,8 +13,6 @@ trained them.
 
 from __future__ import annotations
 
-import contextlib
-import fcntl
 import json
 import shutil
 import time
@@ -24,28 +22,13 @@ from agents.algorithms.sb3.hyperparams import load_hyperparams
 from agents.algorithms.sb3.training import train as train_sb3, train_residual_ppo
 from agents.algorithms.torch_ppo_config import Config
 from agents.experiments.registry import RunSpec, spec
+from agents.files import RunLocked, exclusive, write_json
 from scara_gym.registration import TRAINING_ENV_ID
 
 
 def run_dir(runs: Path, env_id: str, control_mode: str, name: str, seed: int) -> Path:
     """Where seed ``seed`` of the registered run ``name`` lives under ``runs``."""
     return Path(runs) / env_id / control_mode / name / f"seed{seed}"
-
-
-@contextlib.contextmanager
-def run_lock(out: Path):
-    """Yields True while this process holds the run's lock, False if another one does."""
-    out.mkdir(parents=True, exist_ok=True)
-    with open(out / ".lock", "w") as handle:
-        try:
-            fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except BlockingIOError:
-            yield False
-            return
-        try:
-            yield True
-        finally:
-            fcntl.flock(handle, fcntl.LOCK_UN)
 
 
 PUBLISHED = ("config.json", "summary.json", "model.zip", "model.pt", "vecnormalize.pkl", "evaluation.npz",
@@ -122,7 +105,7 @@ def _train_torch_ppo(run: RunSpec, out: Path, seed: int, env_id: str, control_mo
     if base is not None:
         record = json.loads((out / "config.json").read_text())
         record["base_train_seconds"] = json.loads((base / "config.json").read_text())["train_seconds"]
-        (out / "config.json").write_text(json.dumps(record, indent=2))
+        write_json(out / "config.json", record)
     return out
 
 
@@ -144,13 +127,14 @@ def campaign(names: list[str], seeds: list[int], runs: Path, env_id: str = TRAIN
                 print(f"{name} seed {seed}: not finished, not published", flush=True)
             continue
         started = time.perf_counter()
-        with run_lock(run) as mine:
-            if not mine:
-                print(f"{name} seed {seed}: trained by another process, passed over", flush=True)
-                continue
-            command = (f"scara-agents campaign --runs-of {name} --seeds {seed} --env-id {env_id} "
-                       f"--control-mode {control_mode} --runs {runs}")
-            out = train_run(name, run, seed, env_id, control_mode, total_timesteps, command=command)
+        command = (f"scara-agents campaign {name} --seeds {seed} --env-id {env_id} --control-mode {control_mode} "
+                   f"--runs {runs}")
+        try:
+            with exclusive(run):  # held through a fine-tune's base run too
+                out = train_run(name, run, seed, env_id, control_mode, total_timesteps, command=command)
+        except RunLocked:
+            print(f"{name} seed {seed}: trained by another process, passed over", flush=True)
+            continue
         config = json.loads((out / "config.json").read_text())
         print(f"{name} seed {seed}: {out} ({config['train_seconds']:.0f} s of training, "
               f"{time.perf_counter() - started:.0f} s in this call)", flush=True)

@@ -194,15 +194,16 @@ def test_a_cached_evaluation_is_reused_only_for_the_same_model_condition_and_epi
     env = conditions.make_env(c11, "pd")
     cache = tmp_path / "cache"
     first = evaluation.learned_episodes(env, run, c11, "pd", 3, 1000, True, cache)
-    assert len(list(cache.glob("*.pkl"))) == 1
+    assert len(list(cache.glob("*.npz"))) == 1 and not list(cache.glob("*.partial"))
 
     def must_not_run(*args, **kwargs):
         raise AssertionError("evaluated again")
 
     monkeypatch.setattr(evaluation, "episodes_of", must_not_run)
     again = evaluation.learned_episodes(env, run, c11, "pd", 3, 1000, True, cache)
-    for key in ("success", "collisions", "reach_time", "energy"):
+    for key in ("success", "collisions", "reach_time", "energy", "trace"):
         assert np.array_equal(first[key], again[key], equal_nan=True), key
+    assert len(again["traces"]) == 1 and np.array_equal(again["traces"][0], first["trace"])
     key = evaluation.evaluation_key(run, c11, "pd", 3, 1000)
     assert key != evaluation.evaluation_key(run, load, "pd", 3, 1000)
     assert key != evaluation.evaluation_key(run, c11, "pd", 4, 1000)

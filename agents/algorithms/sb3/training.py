@@ -32,6 +32,7 @@ import numpy as np
 
 from agents.algorithms.sb3.hyperparams import load_hyperparams
 from agents.algorithms.sb3.policy import SHIPPED_MODELS, algorithm_class, residual_mapping
+from agents.files import exclusive, write_json
 from scara_gym.registration import ENV_KWARGS, GOAL_ENV_IDS, TRAINING_ENV_ID
 
 ALGORITHMS = ("ppo", "sac", "td3")
@@ -158,7 +159,14 @@ def _restore_history(path: Path, eval_callback, best_mean_reward: float) -> None
 def train(algo: str, out: str | Path, env_id: str = TRAINING_ENV_ID, control_mode: str = "pd", seed: int = 0,
           hyperparams: dict | None = None, total_timesteps: int | None = None, progress_bar: bool = False,
           command: str | None = None) -> Path:
-    """Train (or resume) one run into `out`; returns `out`. See the module docstring."""
+    """Train (or resume) one run into `out`, its folder locked for the whole run
+    (agents.files.exclusive); returns `out`. See the module docstring."""
+    with exclusive(Path(out)):
+        return _train(algo, out, env_id, control_mode, seed, hyperparams, total_timesteps, progress_bar, command)
+
+
+def _train(algo: str, out: str | Path, env_id: str, control_mode: str, seed: int, hyperparams: dict | None,
+           total_timesteps: int | None, progress_bar: bool, command: str | None) -> Path:
     import torch
     from stable_baselines3.common.callbacks import CheckpointCallback, EvalCallback
 
@@ -228,7 +236,7 @@ def train(algo: str, out: str | Path, env_id: str = TRAINING_ENV_ID, control_mod
               "resumed": resuming, "torch_threads": torch.get_num_threads(),
               "checkpoint_rule": "none: the policy at the end of the budget",
               "command": command or f"agents.algorithms.sb3.training.train({algo!r}, {str(out)!r}, {env_id!r}, {control_mode!r}, {seed})"}
-    (out / "config.json").write_text(json.dumps(config, indent=2))
+    write_json(out / "config.json", config)
     shutil.rmtree(out / "snapshot", ignore_errors=True)
     shutil.rmtree(out / "snapshot.old", ignore_errors=True)
     return out

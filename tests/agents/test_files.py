@@ -1,0 +1,173 @@
+"""agents.files: whole files or none, and loads that never run code from a file."""
+
+import os
+import pickle
+
+import numpy as np
+import pytest
+
+from agents import files
+
+
+class Payload:
+    """Unpickling this runs a command that leaves a mark: what a hostile file would do."""
+
+    def __init__(self, mark):
+        self.mark = str(mark)
+
+    def __reduce__(self):
+        return (os.system, (f"touch {self.mark}",))
+
+
+def test_a_write_that_fails_leaves_the_old_file_and_no_temporary(tmp_path, monkeypatch):
+    target = files.write_json(tmp_path / "config.json", {"update": 1})
+    def crash(*args):
+        raise KeyboardInterrupt  # a kill between the write and the rename
+    monkeypatch.setattr(os, "replace", crash)
+    with pytest.raises(KeyboardInterrupt):
+        files.write_json(target, {"update": 2})
+    assert target.read_text() == '{\n  "update": 1\n}' and sorted(p.name for p in tmp_path.iterdir()) == ["config.json"]
+
+
+def test_weights_round_trip_and_a_pickle_payload_is_refused_unrun(tmp_path):
+    torch = pytest.importorskip("torch")
+    saved = {"state_dict": {"w": torch.ones(2)}, "obs_size": 18, "clip_obs": 10.0, "steps": [1, 2]}
+    files.save_torch(saved, tmp_path / "model.pt")
+    loaded = files.load_torch(tmp_path / "model.pt")
+    assert torch.equal(loaded["state_dict"]["w"], saved["state_dict"]["w"]) and loaded["steps"] == [1, 2]
+    mark = tmp_path / "ran"
+    torch.save({"state_dict": Payload(mark)}, tmp_path / "hostile.pt")
+    with pytest.raises(ValueError, match=r"hostile\.pt: not a weights file"):
+        files.load_torch(tmp_path / "hostile.pt")
+    (tmp_path / "truncated.pt").write_bytes((tmp_path / "model.pt").read_bytes()[:40])
+    with pytest.raises(ValueError, match=r"truncated\.pt"):
+        files.load_torch(tmp_path / "truncated.pt")
+    assert not mark.exists()
+
+
+def test_a_run_folder_with_a_hostile_model_or_checkpoint_is_refused(tmp_path):
+    torch = pytest.importorskip("torch")
+    import gymnasium as gym
+
+    from agents.algorithms.torch_ppo import Config, TorchPPOPolicy, train
+
+    run = tmp_path / "run"
+    config = Config(num_envs=2, num_steps=8, num_minibatches=1, update_epochs=1, total_timesteps=16,
+                    checkpoint_every=1, out=str(run))
+    train(config)
+    mark = tmp_path / "ran"
+    for name in ("model.pt", "checkpoint.pt"):
+        torch.save({"state_dict": Payload(mark), "agent": Payload(mark)}, run / name)
+    with pytest.raises(ValueError, match=r"model\.pt: not a weights file"):
+        TorchPPOPolicy(gym.make("Scara-C11-v1"), run)
+    with pytest.raises(ValueError, match=r"checkpoint\.pt: not a weights file"):
+        train(Config(**{**config.to_dict(), "total_timesteps": 32}), resume=True)
+    assert not mark.exists()
+
+
+def test_arrays_round_trip_and_an_object_array_is_refused_unrun(tmp_path):
+    arrays = {"success": np.array([True, False]), "reach_time": np.array([1.2, np.nan])}
+    files.save_arrays(tmp_path / "entry.npz", arrays)
+    loaded = files.load_arrays(tmp_path / "entry.npz")
+    assert np.array_equal(loaded["reach_time"], arrays["reach_time"], equal_nan=True)
+    mark = tmp_path / "ran"
+    np.savez(tmp_path / "hostile.npz", x=np.array([Payload(mark)], dtype=object))
+    with pytest.raises(ValueError, match=r"hostile\.npz: not an array file"):
+        files.load_arrays(tmp_path / "hostile.npz")
+    (tmp_path / "pickled.npz").write_bytes(pickle.dumps(Payload(mark)))
+    with pytest.raises(ValueError, match=r"pickled\.npz"):
+        files.load_arrays(tmp_path / "pickled.npz")
+    assert not mark.exists()
+
+
+def test_a_run_folder_has_one_writer_and_the_second_is_told_the_holders_pid(tmp_path):
+    import subprocess
+    import sys
+    import time
+
+    folder = tmp_path / "run"
+    with files.exclusive(folder), files.exclusive(folder):  # re-entrant within a process
+        assert (folder / ".lock").read_text().strip() == str(os.getpid())
+    holder = subprocess.Popen([sys.executable, "-c", "import sys, time; from agents import files\n"
+                               f"with files.exclusive({str(folder)!r}):\n    print('held', flush=True); time.sleep(60)"],
+                              stdout=subprocess.PIPE, text=True)
+    try:
+        assert holder.stdout.readline().strip() == "held"
+        with pytest.raises(files.RunLocked, match=rf"pid {holder.pid}\)"):
+            with files.exclusive(folder):
+                pass
+    finally:
+        holder.kill()
+        holder.wait()
+    time.sleep(0.1)
+    with files.exclusive(folder):  # the dead holder's lock is free at once
+        pass
+
+
+def test_training_into_a_folder_that_holds_a_run_needs_resume(tmp_path, capsys):
+    pytest.importorskip("torch")
+    from agents.algorithms.torch_ppo import Config, train
+    from agents.cli import run
+
+    config = Config(num_envs=2, num_steps=8, num_minibatches=1, update_epochs=1, total_timesteps=16,
+                    out=str(tmp_path / "run"))
+    train(config)
+    with pytest.raises(ValueError, match="holds a run already; resume=True"):
+        train(config)
+    assert train(config, resume=True)["global_step"] == 16  # finished: nothing more to train
+    with pytest.raises(SystemExit) as exit_:
+        run(["torch-ppo", "--out", str(tmp_path / "fresh"), "--resume"])
+    assert exit_.value.code == 2 and "holds no checkpoint.pt" in capsys.readouterr().err
+
+
+@pytest.mark.slow
+def test_a_run_killed_at_random_instants_resumes_to_the_same_end(tmp_path):
+    """SIGKILL at random instants (checkpoints are written every update, so some kills land in
+    a write): every restart resumes from the last complete checkpoint, and the run ends with
+    the updates and steps of an unkilled one."""
+    import json
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    torch = pytest.importorskip("torch")
+    out = tmp_path / "run"
+    flags = ["--num-envs", "2", "--num-steps", "8", "--num-minibatches", "1", "--update-epochs", "1",
+             "--total-timesteps", "1600", "--checkpoint-every", "1", "--out", str(out)]
+    rng = np.random.default_rng(0)
+    kills, updates_seen = 0, []
+
+    def start():
+        resume = ["--resume"] if (out / "checkpoint.pt").exists() else []
+        return subprocess.Popen([sys.executable, "-m", "agents", "torch-ppo", *flags, *resume],
+                                stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+
+    def saved_update():
+        try:
+            return files.load_torch(out / "checkpoint.pt")["update"]
+        except (ValueError, FileNotFoundError):
+            return 0
+
+    for _ in range(4):  # each start is killed at a random instant after it made progress
+        before = saved_update()
+        process = start()
+        deadline = time.monotonic() + 300
+        while process.poll() is None and saved_update() <= before and time.monotonic() < deadline:
+            time.sleep(0.05)
+        time.sleep(float(rng.uniform(0.0, 0.5)))
+        if process.poll() is not None:
+            assert process.returncode == 0, process.stderr.read()
+            break
+        process.send_signal(signal.SIGKILL)
+        process.wait()
+        kills += 1
+        updates_seen.append(saved_update())
+    process = start()  # the last restart runs to the end
+    assert process.wait(timeout=600) == 0, process.stderr.read()
+    assert kills >= 2 and len(updates_seen) >= 2, (kills, updates_seen)
+    assert updates_seen == sorted(updates_seen) and updates_seen[-1] < 100
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["global_step"] == 1600 and files.load_torch(out / "checkpoint.pt")["update"] == 100
+    assert not list(out.glob(".*.partial"))
+    assert torch.isfinite(files.load_torch(out / "model.pt")["state_dict"]["actor_logstd"]).all()
