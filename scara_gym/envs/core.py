@@ -21,7 +21,7 @@ import math
 import numpy as np
 from numba import njit, prange
 
-from scara_gym.model.compilation import JIT
+from scara_gym.model.compilation import JIT, JIT_BORROW
 from scara_gym.model.dynamics import applied_voltages, pd_voltage, tip_position, voltage_limit
 from scara_gym.model.integrator import initial_modes, integrate_with, new_workspace
 from scara_gym.model import records as R
@@ -70,7 +70,7 @@ OUTCOME = np.dtype([
 DISTANCE_SCALE = np.array([1.0, 1.0, 0.1])
 
 
-@njit(**JIT)
+@njit(**JIT_BORROW)
 def scaled_distance(x, p):
     total = 0.0
     for i in range(3):
@@ -79,13 +79,13 @@ def scaled_distance(x, p):
     return math.sqrt(total)
 
 
-@njit(**JIT)
+@njit(**JIT_BORROW)
 def _put(out, i, value, task):
     v = np.float32(value)
     out[i] = min(max(v, task.obs_low[i]), task.obs_high[i])
 
 
-@njit(**JIT)
+@njit(**JIT_BORROW)
 def observe(robot, p, task, out):
     """The observation of the card, clipped to the space (float32 out)."""
     x = robot.x
@@ -103,7 +103,7 @@ def observe(robot, p, task, out):
     _put(out, O_TIME_LEFT, max(0.0, 1.0 - robot.t / task.time_limit), task)
 
 
-@njit(**JIT)
+@njit(**JIT_BORROW)
 def control_step(robot, p, config, task, log, outcome, workspace):
     """Advance one robot by one control step (or to its stop event) under its command, in the
     integrator's work arrays (``integrator.new_workspace``)."""
@@ -178,7 +178,7 @@ def begin_episode(robot, p, config, task, outcome, obs, start, target):
     start_episode(robot, p, config, task, outcome, obs)
 
 
-@njit(**JIT)
+@njit(**JIT_BORROW)
 def robot_step(action, robot, p, config, task, log, outcome, obs, workspace):
     """One environment step of one robot: the action checked, clipped and mapped to the
     command, control_step, then the observation. Returns the status; STATUS_BAD_ACTION

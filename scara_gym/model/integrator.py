@@ -27,7 +27,7 @@ import math
 import numpy as np
 from numba import njit
 
-from scara_gym.model.compilation import JIT, JIT_INLINE
+from scara_gym.model.compilation import JIT, JIT_BORROW, JIT_INLINE
 from scara_gym.model.dynamics import (
     applied_voltages, derivative, free_current_rate, is_critical_state, is_inside_target,
     is_widened, pd_linear_voltage, settle_saturation, target_error, tip_position, voltage_limit,
@@ -108,7 +108,7 @@ def event_values(x, robot, p, config, volts, g):
     return g
 
 
-@njit(**JIT)
+@njit(**JIT_BORROW)
 def log_event(t, code, axis, robot, log):
     n = robot.n_events
     if n < log.shape[0]:
@@ -118,7 +118,7 @@ def log_event(t, code, axis, robot, log):
     robot.n_events = n + 1
 
 
-@njit(**JIT)
+@njit(**JIT_BORROW)
 def initial_modes(robot, p, config):
     """Discrete modes implied by the robot's state at the start of a simulation."""
     x = robot.x
@@ -136,7 +136,7 @@ def initial_modes(robot, p, config):
     robot.inside = 1 if is_inside_target(x, p) else 0
 
 
-@njit(**JIT)
+@njit(**JIT_BORROW)
 def settle_holds(t, x, robot, p, config, volts, log):
     """Hold a current at its limit while it pushes outward; release it when it no longer does.
 
@@ -159,7 +159,7 @@ def settle_holds(t, x, robot, p, config, volts, log):
                 log_event(t, EV_LIMIT_OFF, axis, robot, log)
 
 
-@njit(**JIT)
+@njit(**JIT_BORROW)
 def handle_event(k, t, x, robot, p, config, log):
     """Switch the mode of event k at state x; True when the configuration says stop here."""
     stop_mask = config.stops
@@ -277,7 +277,7 @@ SEARCH_RESOLUTION = 1e-10  # [s] a mode switch that starts and ends within less 
 STACK_DEPTH = 64           # intervals of the in-step search (it needs about log2(h / 1e-10) + 1)
 
 
-@njit(**JIT)
+@njit(**JIT_BORROW)
 def dense_coefficients(h, k, coeffs):
     """coeffs[j, i]: the coefficient of theta^(j+1) in the dense output of state i (a quartic
     in theta with constant term x_i), for the positions, rates and currents."""
@@ -300,7 +300,7 @@ def affine_bernstein(g0, i1, c1, i2, c2, coeffs):
             g0 + p1 + p2 + p3 + p4)
 
 
-@njit(**JIT)
+@njit(**JIT_BORROW)
 def first_root_affine(g0, i1, c1, i2, c2, coeffs, h, stack, bracket):
     """Bracket the first root in [0, 1] of an event function affine in the state, given
     g(0) = g0 >= 0 (see affine_bernstein). Bernstein coefficients bound it on an interval
@@ -326,7 +326,7 @@ def affine_root(g0, i1, c1, i2, c2, x, y_new, bend, h, k, coeffs, ready, stack, 
     return slow_root_affine(g0, i1, c1, i2, c2, h, k, coeffs, ready, stack, bracket), True
 
 
-@njit(**JIT)
+@njit(**JIT_BORROW)
 def slow_root_affine(g0, i1, c1, i2, c2, h, k, coeffs, ready, stack, bracket):
     """affine_root past its cheap test: one call, out of line."""
     if not ready:
@@ -334,7 +334,7 @@ def slow_root_affine(g0, i1, c1, i2, c2, h, k, coeffs, ready, stack, bracket):
     return first_root_affine(g0, i1, c1, i2, c2, coeffs, h, stack, bracket)
 
 
-@njit(**JIT)
+@njit(**JIT_BORROW)
 def refine_root_affine(g0, b1, b2, b3, b4, h, stack, bracket):
     """first_root_affine's search: de Casteljau halving of the undecided intervals, leftmost
     first."""
@@ -370,7 +370,7 @@ def refine_root_affine(g0, b1, b2, b3, b4, h, stack, bracket):
     return False
 
 
-@njit(**JIT)
+@njit(**JIT_BORROW)
 def first_root_lipschitz(e, g0, g1, slope, x, h, k, robot, p, config, volts, g_try, x_try, stack, bracket):
     """Bracket the first root in [0, 1] of event function e, not affine in the state, given
     g(0) = g0 >= 0, g(1) = g1 and |dg/dtheta| <= slope: an interval whose end values a, b
@@ -397,7 +397,7 @@ def first_root_lipschitz(e, g0, g1, slope, x, h, k, robot, p, config, volts, g_t
     return False
 
 
-@njit(**JIT)
+@njit(**JIT_BORROW)
 def search_switches(x, y_new, h, k, robot, p, config, volts, g_old, g_new, g_try, x_try, coeffs, reach,
                     bend, stack, bracket, brackets, triggered):
     """exact_switches: find every mode switch inside the accepted step [t, t + h], including
@@ -505,7 +505,7 @@ def search_switches(x, y_new, h, k, robot, p, config, volts, g_old, g_new, g_try
     return any_event
 
 
-@njit(**JIT)
+@njit(**JIT_BORROW)
 def initial_step(x, f0, robot, p, config, volts, scale, y1, f1):
     """Hairer's starting step, as scipy's select_initial_step (order 5); scale, y1 and f1
     are work vectors of the state's size."""
@@ -536,8 +536,10 @@ def record(t, x, robot, p, config, volts, samples):
         applied_voltages(x, robot, p, config, volts)
         sample = samples[n]
         sample.t = t
-        sample.x[:] = x
-        sample.voltage[:] = volts
+        for i in range(x.shape[0]):  # element by element: a slice assignment of record arrays needs NRT
+            sample.x[i] = x[i]
+        for i in range(3):
+            sample.voltage[i] = volts[i]
         robot.n_samples = n + 1
 
 
@@ -565,7 +567,7 @@ def integrate(robot, p, config, t_end, log, samples):
     return integrate_with(robot, p, config, t_end, log, samples, new_workspace())
 
 
-@njit(**JIT)
+@njit(**JIT_BORROW)
 def integrate_with(robot, p, config, t_end, log, samples, workspace):
     """integrate() in the given work arrays (new_workspace): it allocates nothing and assigns
     no slices, so that numba-cuda compiles it as a device function."""
