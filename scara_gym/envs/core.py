@@ -23,7 +23,7 @@ from numba import njit, prange
 
 from scara_gym.model.compilation import JIT, JIT_BORROW
 from scara_gym.model.dynamics import applied_voltages, pd_voltage, tip_position, voltage_limit
-from scara_gym.model.integrator import initial_modes, integrate_with, new_workspace
+from scara_gym.model.integrator import N_TIMERS, cycles, initial_modes, integrate_timed, new_workspace
 from scara_gym.model import records as R
 from scara_gym.model.records import (
     CURRENT, ENERGY, F8, I8, Q, RATE, STATUS_BAD_ACTION, field_offset,
@@ -104,16 +104,17 @@ def observe(robot, p, task, out):
 
 
 @njit(**JIT_BORROW)
-def control_step(robot, p, config, task, log, outcome, workspace):
+def control_step(robot, p, config, task, log, outcome, workspace, timers):
     """Advance one robot by one control step (or to its stop event) under its command, in the
-    integrator's work arrays (``integrator.new_workspace``)."""
+    integrator's work arrays (``integrator.new_workspace``); timers: None, or the integrator's
+    (``integrator.integrate_timed``)."""
     x = robot.x
     t = robot.t
     distance_before = outcome.distance
     robot.n_events = robot.n_collisions = 0
     robot.reach_time = math.nan
     energy_before = x[ENERGY]
-    status = integrate_with(robot, p, config, t + task.control_dt, log, None, workspace)
+    status = integrate_timed(robot, p, config, t + task.control_dt, log, None, workspace, timers)
     t_new = robot.t
     collisions = robot.n_collisions  # counted by the integrator: a full event log loses none
     reach_time = robot.reach_time
@@ -184,6 +185,12 @@ def robot_step(action, robot, p, config, task, log, outcome, obs, workspace):
     command, control_step, then the observation. Returns the status; STATUS_BAD_ACTION
     (with nothing changed) when the action is not finite.
     """
+    return timed_robot_step(action, robot, p, config, task, log, outcome, obs, workspace, None)
+
+
+@njit(**JIT_BORROW)
+def timed_robot_step(action, robot, p, config, task, log, outcome, obs, workspace, timers):
+    """robot_step; with timers (not None) as integrate_timed's."""
     for i in range(3):
         if not math.isfinite(action[i]):
             return STATUS_BAD_ACTION
@@ -194,7 +201,7 @@ def robot_step(action, robot, p, config, task, log, outcome, obs, workspace):
             clipped += 1
             a = min(max(a, -1.0), 1.0)
         robot.command[i] = task.setpoint_center[i] + task.setpoint_half[i] * a if task.pd else a
-    status = control_step(robot, p, config, task, log, outcome, workspace)
+    status = control_step(robot, p, config, task, log, outcome, workspace, timers)
     outcome.clipped = clipped
     observe(robot, p, task, obs)
     return status
@@ -248,6 +255,26 @@ def restore_robot(i, x, hold, t, step_size, episode_steps, robots, params, confi
 def step_robot(i, action, robots, params, config, task, log, outcomes, obs):
     return robot_step(action, robots[i], params[i], config[0], task[0], log[i], outcomes[i], obs[i],
                       new_workspace())
+
+
+T_STEP = N_TIMERS - 1  # timers slot of profile_robot's whole step [cycles]
+
+
+@njit(**JIT)
+def profile_robot(i, action, robots, params, config, task, log, outcomes, obs, timers):
+    """step_robot with the integrator's timers (the benchmark's cost breakdown: a separate
+    compilation, so that the environment's own step carries no timer)."""
+    started = cycles()
+    status = timed_robot_step(action, robots[i], params[i], config[0], task[0], log[i], outcomes[i], obs[i],
+                              new_workspace(), timers)
+    timers[T_STEP] += cycles() - started
+    return status
+
+
+@njit(**JIT)
+def cycle_counter():
+    """The cycle counter read from Python (the benchmark calibrates it against the clock)."""
+    return cycles()
 
 
 @njit(cache=True, nogil=True, parallel=True)

@@ -25,7 +25,10 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
+from llvmlite import ir as llvm_ir
+from numba import njit, types
+from numba.core import cgutils
+from numba.core.extending import intrinsic
 
 from scara_gym.model.compilation import JIT, JIT_BORROW, JIT_INLINE
 from scara_gym.model.dynamics import (
@@ -571,6 +574,31 @@ def integrate(robot, p, config, t_end, log, samples):
 def integrate_with(robot, p, config, t_end, log, samples, workspace):
     """integrate() in the given work arrays (new_workspace): it allocates nothing and assigns
     no slices, so that numba-cuda compiles it as a device function."""
+    return integrate_timed(robot, p, config, t_end, log, samples, workspace, None)
+
+
+@intrinsic
+def cycles(typingctx):
+    """The CPU's cycle counter (llvm.readcyclecounter: rdtsc on x86), for the cost breakdown."""
+    def codegen(context, builder, signature, args):
+        counter = cgutils.get_or_insert_function(builder.module, llvm_ir.FunctionType(llvm_ir.IntType(64), []),
+                                                 "llvm.readcyclecounter")
+        return builder.call(counter, [])
+    return types.int64(), codegen
+
+
+# slots of the timers of integrate_timed [cycles]: the switch search (event values at the step's
+# end and the search inside it) and the event location (the root refinement, the mode switches
+# and the restart's bookkeeping, without its right-hand side)
+T_SEARCH, T_LOCATE = 0, 1
+N_TIMERS = 4  # the environment step adds its total (envs.core.T_STEP)
+
+
+@njit(**JIT_BORROW)
+def integrate_timed(robot, p, config, t_end, log, samples, workspace, timers):
+    """integrate_with, and with timers (an int64 array, not None) the cycles spent in the
+    parts named by T_SEARCH and T_LOCATE added to it. With timers None numba prunes every
+    timer branch before compiling: integrate_with's machine code has no trace of them."""
     n = N_STATE
     work, small, stack, triggered = workspace
     k = work[:7]
@@ -653,6 +681,8 @@ def integrate_with(robot, p, config, t_end, log, samples, workspace):
         robot.n_steps += 1
         factor = MAX_FACTOR if err == 0.0 else min(MAX_FACTOR, SAFETY * err ** -0.2)
 
+        if timers is not None:
+            started = cycles()
         event_values(y_new, robot, p, config, volts, g_new)
         if config.exact_switches:
             any_event = search_switches(x, y_new, h_step, k, robot, p, config, volts, g_old, g_new, g_try,
@@ -664,6 +694,9 @@ def integrate_with(robot, p, config, t_end, log, samples, workspace):
                 if triggered[e]:
                     any_event = True
                     brackets[0, e], brackets[1, e], brackets[2, e], brackets[3, e] = 0.0, 1.0, g_old[e], g_new[e]
+        if timers is not None:
+            searched = cycles()
+            timers[T_SEARCH] += searched - started
         if not any_event:
             t = t_end if last else t + h_step
             for i in range(n):
@@ -720,10 +753,17 @@ def integrate_with(robot, p, config, t_end, log, samples, workspace):
         settle_holds(t, x, robot, p, config, volts, log)
         if samples is not None:
             record(t, x, robot, p, config, volts, samples)
+        if timers is not None:
+            restarted = cycles()
         derivative(x, robot, p, config, k[0], volts)
         robot.n_rhs += 1
+        if timers is not None:
+            timers[T_LOCATE] += restarted - searched
+            located = cycles()
         event_values(x, robot, p, config, volts, g_old)
         h = h_step  # the step up to the event was accurate; keep its size
+        if timers is not None:
+            timers[T_LOCATE] += cycles() - located
         if stop:
             robot.step_size = h
             robot.t = t
@@ -731,6 +771,21 @@ def integrate_with(robot, p, config, t_end, log, samples, workspace):
     robot.step_size = h
     robot.t = t
     return STATUS_END
+
+
+@njit(**JIT)
+def rhs_cycles(states, robot, p, config, repeats):
+    """Cycles per right-hand side on the given states (rows), in the robot's modes: the unit
+    of the benchmark's cost breakdown. Returns (cycles, a checksum that keeps the loop)."""
+    out = np.empty(N_STATE)
+    volts = np.empty(3)
+    checksum = 0.0
+    started = cycles()
+    for _ in range(repeats):
+        for row in range(states.shape[0]):
+            derivative(states[row], robot, p, config, out, volts)
+            checksum += out[RATE]
+    return (cycles() - started) / (repeats * states.shape[0]), checksum
 
 
 # entry points for Python callers: one-element record arrays dispatch faster than records
