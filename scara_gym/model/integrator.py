@@ -400,6 +400,30 @@ def first_root_lipschitz(e, g0, g1, slope, x, h, k, robot, p, config, volts, g_t
     return False
 
 
+CLEAR_MARGIN = 1e-9  # [m or rad] chord_clear's proof margin: far above the rounding of g on the dense output
+
+
+@njit(**JIT_INLINE)
+def chord_clear(e, g0, g1, x, y_new, bend, p):
+    """True when event function e (critical, wall side or target: not affine) provably stays
+    above CLEAR_MARGIN along the step, so that first_root_lipschitz would find nothing: a
+    cheaper test than its slope bound, and a tighter one, which spares its bisection. Each
+    position departs from its chord by at most bend (see BEND), so it is within theta |dq| +
+    bend of its start and (1 - theta) |dq| + bend of its end; g is Lipschitz in the positions
+    (the tip's x with constants l1 and l2, min, max and abs with 1), so with A and B those
+    terms through g, g(theta) >= max(g0 - theta A, g1 - (1 - theta) A) - B >= (g0 + g1 - A) / 2 - B."""
+    dq1, dq2, dq3 = y_new[Q] - x[Q], y_new[Q + 1] - x[Q + 1], y_new[Q + 2] - x[Q + 2]
+    b1, b2, b3 = bend[Q], bend[Q + 1], bend[Q + 2]
+    if e == E_TARGET:
+        along, off = max(abs(dq1), abs(dq2), abs(dq3)), max(b1, b2, b3)
+    else:
+        along = p.link1_length * abs(dq1) + p.link2_length * abs(dq1 + dq2)
+        off = p.link1_length * b1 + p.link2_length * (b1 + b2)
+        if e == E_CRITICAL:
+            along, off = max(along, abs(dq3)), max(off, b3)
+    return g1 >= 0.0 and 0.5 * (g0 + g1 - along) - off > CLEAR_MARGIN
+
+
 @njit(**JIT_BORROW)
 def search_switches(x, y_new, h, k, robot, p, config, volts, g_old, g_new, g_try, x_try, coeffs, reach,
                     bend, stack, bracket, brackets, triggered):
@@ -479,7 +503,8 @@ def search_switches(x, y_new, h, k, robot, p, config, volts, g_old, g_new, g_try
                 slope = max(tip_x_slope, d3)
             else:
                 slope = max(d1, d2, d3)
-            if g_new[e] < 0.0 or g_old[e] + g_new[e] < slope:
+            if g_new[e] < 0.0 or (g_old[e] + g_new[e] < slope
+                                  and not chord_clear(e, g_old[e], g_new[e], x, y_new, bend, p)):
                 found = first_root_lipschitz(e, g_old[e], g_new[e], slope, x, h, k, robot, p, config, volts,
                                              g_try, x_try, stack, bracket)
         if not found:
