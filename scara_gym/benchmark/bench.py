@@ -5,6 +5,8 @@
    current-limit modes and the same tolerances.
 2. One environment through ``gym.make``, random actions, next to Gymnasium's
    Pendulum-v1 and CartPole-v1 (and MuJoCo's Reacher-v5 where mujoco is installed).
+   Then where a step's time goes, per id (bench_cost): Python, right-hand sides, switch
+   search, event location and bookkeeping, with right-hand sides and integration steps.
 3. The native vector environment at N robots next to Gymnasium's vectorized CartPole.
    Then the environment's integration tolerance: speed against accuracy.
 4. Peak memory of the largest vector environment, and cold / warm start of
