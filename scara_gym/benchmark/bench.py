@@ -5,6 +5,8 @@
    current-limit modes and the same tolerances.
 2. One environment through ``gym.make``, random actions, next to Gymnasium's
    Pendulum-v1 and CartPole-v1 (and MuJoCo's Reacher-v5 where mujoco is installed).
+   Then where a step's time goes, per id (bench_cost): Python, right-hand sides, switch
+   search, event location and bookkeeping, with right-hand sides and integration steps.
 3. The native vector environment at N robots next to Gymnasium's vectorized CartPole.
    Then the environment's integration tolerance: speed against accuracy.
 4. Peak memory of the largest vector environment, and cold / warm start of
@@ -139,6 +141,126 @@ def bench_vector(sizes, steps: int, modes=("voltage", "pd"), env_ids=None) -> li
                                         control_mode=mode, collision="penalty")
                 rows.append((env_id, mode, n, _vector_steps_per_second(venv, steps), cartpole))
     return rows
+
+
+def _seconds_per_cycle() -> float:
+    """The cycle counter's period, against the clock (0 where the CPU has no readable counter)."""
+    from scara_gym.envs.core import cycle_counter
+
+    cycle_counter()
+    first, started = cycle_counter(), time.perf_counter()
+    time.sleep(0.2)
+    last, elapsed = cycle_counter(), time.perf_counter() - started
+    return elapsed / (last - first) if last > first else 0.0
+
+
+COST_PARTS = ("python", "rhs", "search", "locate", "bookkeeping")
+"""The parts of bench_cost's breakdown (its rows' keys, in microseconds per step)."""
+
+
+def bench_cost(env_ids=None, steps: int = 1000, control_mode: str = "pd", rounds: int = 3) -> list[dict]:
+    """Where the time of one environment step goes, per id: one env via gym.make, seeded random
+    actions. The step's wall time (best of `rounds`, ids in turns) splits into the Python
+    around the compiled step (gym.make's step less one timed call of the compiled step), the
+    right-hand sides (their count times the cost of one, timed on the episode's states), the
+    switch search (event values at each integration step's end and the search inside it) and
+    the event location (root refinement, mode switches, restart), both from the cycle counter
+    of a separately compiled timed step, and the bookkeeping: the rest of the compiled step
+    (Runge-Kutta stages' arithmetic, error control, reward and observation). Rows: id,
+    steps_per_second, total and COST_PARTS [us per step], rhs_per_step, steps_per_step
+    (integration steps, rejected ones included)."""
+    import warnings
+
+    import gymnasium as gym
+
+    import scara_gym
+    from scara_gym.envs.core import T_STEP
+    from scara_gym.model.integrator import T_LOCATE, T_SEARCH, rhs_cycles
+
+    env_ids = tuple(env_ids or scara_gym.ENV_VERSIONS)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", DeprecationWarning)  # older ids, measured on purpose
+        envs = {env_id: gym.make(env_id, control_mode=control_mode) for env_id in env_ids}
+    rates = _interleaved_best({env_id: lambda env=env: _steps_per_second(env, steps)
+                               for env_id, env in envs.items()}, rounds)
+    seconds_per_cycle = _seconds_per_cycle()
+    runs = {env_id: _compiled_run(env, steps) for env_id, env in envs.items()}  # compiles, and the states
+    for _ in range(rounds - 1):  # best of rounds, ids in turns, as for the rates
+        for env_id, env in envs.items():
+            run = _compiled_run(env, steps)
+            best = runs[env_id]
+            best["untimed"] = min(best["untimed"], run["untimed"])
+            if run["timers"][T_STEP] < best["timers"][T_STEP]:
+                best["timers"] = run["timers"]
+    rows = []
+    for env_id, env in envs.items():
+        task = env.unwrapped.task
+        run = runs[env_id]
+        timers, rhs, integration_steps, untimed = run["timers"], run["rhs"], run["steps"], run["untimed"]
+        robot = task.robots[0]
+        rhs_seconds = seconds_per_cycle * min(
+            rhs_cycles(run["states"], robot, task.robot_params[0], task.config[0], 50)[0] for _ in range(rounds))
+        us = 1e6 / steps
+        total = 1e6 / rates[env_id]
+        compiled = untimed * us
+        row = {"env_id": env_id, "steps_per_second": rates[env_id], "total": total, "python": total - compiled,
+               "rhs": rhs * rhs_seconds * us, "search": timers[T_SEARCH] * seconds_per_cycle * us,
+               "locate": timers[T_LOCATE] * seconds_per_cycle * us,
+               "rhs_per_step": rhs / steps, "steps_per_step": integration_steps / steps,
+               "timed_step": timers[T_STEP] * seconds_per_cycle * us}
+        row["bookkeeping"] = compiled - row["rhs"] - row["search"] - row["locate"]
+        rows.append(row)
+    return rows
+
+
+def _compiled_run(env, steps: int) -> dict:
+    """bench_cost's compiled passes over one env's seeded actions: the compiled step timed from
+    Python (untimed, [s]), then the timed step (its timers [cycles], right-hand sides, integration
+    steps and up to 512 of the visited states)."""
+    import numpy as np
+
+    from scara_gym.envs.core import N_TIMERS, profile_robot, step_robot
+
+    task = env.unwrapped.task
+    arrays = (task.robots, task.robot_params, task.config, task.task, task.log, task.outcomes, task.obs)
+    robot, outcome = task.robots[0], task.outcomes[0]
+    env.action_space.seed(0)
+    actions = [np.asarray(env.action_space.sample(), dtype=np.float64) for _ in range(steps)]
+    run = {"timers": np.zeros(N_TIMERS, dtype=np.int64), "untimed": 0.0, "rhs": 0, "steps": 0, "states": []}
+    for timed in (False, True):
+        env.reset(seed=0)
+        for action in actions:
+            if timed:
+                before = robot["n_rhs"], robot["n_steps"] + robot["n_rejected"]
+                status = profile_robot(0, action, *arrays, run["timers"])
+                run["rhs"] += int(robot["n_rhs"] - before[0])
+                run["steps"] += int(robot["n_steps"] + robot["n_rejected"] - before[1])
+                if len(run["states"]) < 512:
+                    run["states"].append(robot["x"].copy())
+            else:
+                started = time.perf_counter()
+                status = step_robot(0, action, *arrays)
+                run["untimed"] += time.perf_counter() - started
+            if status < 0:
+                raise RuntimeError(f"{env.spec.id}: integrator status {status}")
+            collided = outcome["collisions"] > 0 and task.collision_mode == "terminate"
+            if outcome["reached"] or collided or outcome["episode_steps"] >= env.spec.max_episode_steps:
+                env.reset()
+    run["states"] = np.array(run["states"])
+    return run
+
+
+def format_cost(rows: list[dict], control_mode: str = "pd") -> str:
+    lines = [f"Where a step's time goes, one env via gym.make ({control_mode} mode, random actions), us per step:",
+             "| env id | steps/s | total | Python | right-hand sides | switch search | event location | "
+             "bookkeeping | RHS per step | integration steps per step |", "|---|---|---|---|---|---|---|---|---|---|"]
+    lines += [f"| {row['env_id']} | {row['steps_per_second']:,.0f} | {row['total']:.1f} | {row['python']:.1f} | "
+              f"{row['rhs']:.1f} | {row['search']:.1f} | {row['locate']:.1f} | {row['bookkeeping']:.1f} | "
+              f"{row['rhs_per_step']:.1f} | {row['steps_per_step']:.1f} |" for row in rows]
+    lines.append("(Search and location from the cycle counter of a separately compiled timed step, whose timer "
+                 "reads they include; bookkeeping is the rest of the compiled step: stages' arithmetic, error "
+                 "control, reward, observation.)")
+    return "\n".join(lines)
 
 
 TOLERANCES = ((1e-5, 1e-6), (1e-4, 1e-5), (1e-3, 1e-4))
@@ -349,6 +471,10 @@ def _main(quick: bool, stream, gpu_only: bool) -> str:
     lines += [f"| {label} | {rate:,.0f} | {rate / base:.2f} |" for label, rate in single]
     chunks.append("\n".join(lines))
     print(chunks[-1] + "\n", file=stream, flush=True)
+
+    for mode in ("pd", "voltage"):
+        chunks.append(format_cost(bench_cost(steps=200 if quick else 3000, control_mode=mode), mode))
+        print(chunks[-1] + "\n", file=stream, flush=True)
 
     sizes = (8, 64) if quick else (64, 1024, 4096)
     vector = bench_vector(sizes, 3 if quick else 20)

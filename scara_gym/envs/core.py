@@ -22,9 +22,9 @@ import numpy as np
 from numba import njit, prange
 
 from scara_gym.model import records as R
-from scara_gym.model.compilation import JIT
+from scara_gym.model.compilation import JIT, JIT_BORROW
 from scara_gym.model.dynamics import applied_voltages, pd_voltage, tip_position, voltage_limit
-from scara_gym.model.integrator import initial_modes, integrate_with, new_workspace
+from scara_gym.model.integrator import N_TIMERS, cycles, initial_modes, integrate_timed, new_workspace
 from scara_gym.model.records import (
     CURRENT,
     ENERGY,
@@ -77,7 +77,7 @@ OUTCOME = np.dtype([
 DISTANCE_SCALE = np.array([1.0, 1.0, 0.1])
 
 
-@njit(**JIT)
+@njit(**JIT_BORROW)
 def scaled_distance(x, p):
     total = 0.0
     for i in range(3):
@@ -86,13 +86,13 @@ def scaled_distance(x, p):
     return math.sqrt(total)
 
 
-@njit(**JIT)
+@njit(**JIT_BORROW)
 def _put(out, i, value, task):
     v = np.float32(value)
     out[i] = min(max(v, task.obs_low[i]), task.obs_high[i])
 
 
-@njit(**JIT)
+@njit(**JIT_BORROW)
 def observe(robot, p, task, out):
     """The observation of the card, clipped to the space (float32 out)."""
     x = robot.x
@@ -110,17 +110,18 @@ def observe(robot, p, task, out):
     _put(out, O_TIME_LEFT, max(0.0, 1.0 - robot.t / task.time_limit), task)
 
 
-@njit(**JIT)
-def control_step(robot, p, config, task, log, outcome, workspace):
+@njit(**JIT_BORROW)
+def control_step(robot, p, config, task, log, outcome, workspace, timers):
     """Advance one robot by one control step (or to its stop event) under its command, in the
-    integrator's work arrays (``integrator.new_workspace``)."""
+    integrator's work arrays (``integrator.new_workspace``); timers: None, or the integrator's
+    (``integrator.integrate_timed``)."""
     x = robot.x
     t = robot.t
     distance_before = outcome.distance
     robot.n_events = robot.n_collisions = 0
     robot.reach_time = math.nan
     energy_before = x[ENERGY]
-    status = integrate_with(robot, p, config, t + task.control_dt, log, None, workspace)
+    status = integrate_timed(robot, p, config, t + task.control_dt, log, None, workspace, timers)
     t_new = robot.t
     collisions = robot.n_collisions  # counted by the integrator: a full event log loses none
     reach_time = robot.reach_time
@@ -185,12 +186,18 @@ def begin_episode(robot, p, config, task, outcome, obs, start, target):
     start_episode(robot, p, config, task, outcome, obs)
 
 
-@njit(**JIT)
+@njit(**JIT_BORROW)
 def robot_step(action, robot, p, config, task, log, outcome, obs, workspace):
     """One environment step of one robot: the action checked, clipped and mapped to the
     command, control_step, then the observation. Returns the status; STATUS_BAD_ACTION
     (with nothing changed) when the action is not finite.
     """
+    return timed_robot_step(action, robot, p, config, task, log, outcome, obs, workspace, None)
+
+
+@njit(**JIT_BORROW)
+def timed_robot_step(action, robot, p, config, task, log, outcome, obs, workspace, timers):
+    """robot_step; with timers (not None) as integrate_timed's."""
     for i in range(3):
         if not math.isfinite(action[i]):
             return STATUS_BAD_ACTION
@@ -201,7 +208,7 @@ def robot_step(action, robot, p, config, task, log, outcome, obs, workspace):
             clipped += 1
             a = min(max(a, -1.0), 1.0)
         robot.command[i] = task.setpoint_center[i] + task.setpoint_half[i] * a if task.pd else a
-    status = control_step(robot, p, config, task, log, outcome, workspace)
+    status = control_step(robot, p, config, task, log, outcome, workspace, timers)
     outcome.clipped = clipped
     observe(robot, p, task, obs)
     return status
@@ -255,6 +262,26 @@ def restore_robot(i, x, hold, t, step_size, episode_steps, robots, params, confi
 def step_robot(i, action, robots, params, config, task, log, outcomes, obs):
     return robot_step(action, robots[i], params[i], config[0], task[0], log[i], outcomes[i], obs[i],
                       new_workspace())
+
+
+T_STEP = N_TIMERS - 1  # timers slot of profile_robot's whole step [cycles]
+
+
+@njit(**JIT)
+def profile_robot(i, action, robots, params, config, task, log, outcomes, obs, timers):
+    """step_robot with the integrator's timers (the benchmark's cost breakdown: a separate
+    compilation, so that the environment's own step carries no timer)."""
+    started = cycles()
+    status = timed_robot_step(action, robots[i], params[i], config[0], task[0], log[i], outcomes[i], obs[i],
+                              new_workspace(), timers)
+    timers[T_STEP] += cycles() - started
+    return status
+
+
+@njit(**JIT)
+def cycle_counter():
+    """The cycle counter read from Python (the benchmark calibrates it against the clock)."""
+    return cycles()
 
 
 @njit(cache=True, nogil=True, parallel=True)

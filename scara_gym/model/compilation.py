@@ -33,6 +33,14 @@ JIT = dict(cache=True, nogil=True, fastmath=False, error_model="numpy")
 # for the functions of the integrator's inner loop: a compiled call with array arguments
 # costs reference counting on each array, more than the arithmetic of these bodies
 JIT_INLINE = dict(JIT, inline="always")
+# for the functions that only borrow arrays (the integrator and the environment step: they neither
+# allocate nor return a new array): no reference counting (NRT) at all. numba otherwise emits an
+# atomic incref/decref pair for every array bound at every inlined call site, whether or not the
+# branch holding it runs, which costs more than the integration step's own arithmetic. The
+# results are the same bits. A function compiled so must not allocate an array or return one that
+# outlives its arguments; those that do (new_workspace, the entry points called from Python, the
+# parallel loops) keep JIT.
+JIT_BORROW = dict(JIT, _nrt=False)
 
 COMPILE_MESSAGE = ("scara_gym: compiling the model with numba (first use after an install or "
                    "an edit: about 40 s on 2 cores; the machine code is cached on disk)")

@@ -25,9 +25,12 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
+from llvmlite import ir as llvm_ir
+from numba import njit, types
+from numba.core import cgutils
+from numba.core.extending import intrinsic
 
-from scara_gym.model.compilation import JIT, JIT_INLINE
+from scara_gym.model.compilation import JIT, JIT_BORROW, JIT_INLINE
 from scara_gym.model.dynamics import (
     applied_voltages,
     derivative,
@@ -146,7 +149,7 @@ def event_values(x, robot, p, config, volts, g):
     return g
 
 
-@njit(**JIT)
+@njit(**JIT_BORROW)
 def log_event(t, code, axis, robot, log):
     n = robot.n_events
     if n < log.shape[0]:
@@ -156,7 +159,7 @@ def log_event(t, code, axis, robot, log):
     robot.n_events = n + 1
 
 
-@njit(**JIT)
+@njit(**JIT_BORROW)
 def initial_modes(robot, p, config):
     """Discrete modes implied by the robot's state at the start of a simulation."""
     x = robot.x
@@ -174,7 +177,7 @@ def initial_modes(robot, p, config):
     robot.inside = 1 if is_inside_target(x, p) else 0
 
 
-@njit(**JIT)
+@njit(**JIT_BORROW)
 def settle_holds(t, x, robot, p, config, volts, log):
     """Hold a current at its limit while it pushes outward; release it when it no longer does.
 
@@ -197,7 +200,7 @@ def settle_holds(t, x, robot, p, config, volts, log):
                 log_event(t, EV_LIMIT_OFF, axis, robot, log)
 
 
-@njit(**JIT)
+@njit(**JIT_BORROW)
 def handle_event(k, t, x, robot, p, config, log):
     """Switch the mode of event k at state x; True when the configuration says stop here."""
     stop_mask = config.stops
@@ -315,7 +318,7 @@ SEARCH_RESOLUTION = 1e-10  # [s] a mode switch that starts and ends within less 
 STACK_DEPTH = 64           # intervals of the in-step search (it needs about log2(h / 1e-10) + 1)
 
 
-@njit(**JIT)
+@njit(**JIT_BORROW)
 def dense_coefficients(h, k, coeffs):
     """coeffs[j, i]: the coefficient of theta^(j+1) in the dense output of state i (a quartic
     in theta with constant term x_i), for the positions, rates and currents."""
@@ -338,7 +341,7 @@ def affine_bernstein(g0, i1, c1, i2, c2, coeffs):
             g0 + p1 + p2 + p3 + p4)
 
 
-@njit(**JIT)
+@njit(**JIT_BORROW)
 def first_root_affine(g0, i1, c1, i2, c2, coeffs, h, stack, bracket):
     """Bracket the first root in [0, 1] of an event function affine in the state, given
     g(0) = g0 >= 0 (see affine_bernstein). Bernstein coefficients bound it on an interval
@@ -364,7 +367,7 @@ def affine_root(g0, i1, c1, i2, c2, x, y_new, bend, h, k, coeffs, ready, stack, 
     return slow_root_affine(g0, i1, c1, i2, c2, h, k, coeffs, ready, stack, bracket), True
 
 
-@njit(**JIT)
+@njit(**JIT_BORROW)
 def slow_root_affine(g0, i1, c1, i2, c2, h, k, coeffs, ready, stack, bracket):
     """affine_root past its cheap test: one call, out of line."""
     if not ready:
@@ -372,7 +375,7 @@ def slow_root_affine(g0, i1, c1, i2, c2, h, k, coeffs, ready, stack, bracket):
     return first_root_affine(g0, i1, c1, i2, c2, coeffs, h, stack, bracket)
 
 
-@njit(**JIT)
+@njit(**JIT_BORROW)
 def refine_root_affine(g0, b1, b2, b3, b4, h, stack, bracket):
     """first_root_affine's search: de Casteljau halving of the undecided intervals, leftmost
     first."""
@@ -408,7 +411,7 @@ def refine_root_affine(g0, b1, b2, b3, b4, h, stack, bracket):
     return False
 
 
-@njit(**JIT)
+@njit(**JIT_BORROW)
 def first_root_lipschitz(e, g0, g1, slope, x, h, k, robot, p, config, volts, g_try, x_try, stack, bracket):
     """Bracket the first root in [0, 1] of event function e, not affine in the state, given
     g(0) = g0 >= 0, g(1) = g1 and |dg/dtheta| <= slope: an interval whose end values a, b
@@ -435,7 +438,31 @@ def first_root_lipschitz(e, g0, g1, slope, x, h, k, robot, p, config, volts, g_t
     return False
 
 
-@njit(**JIT)
+CLEAR_MARGIN = 1e-9  # [m or rad] chord_clear's proof margin: far above the rounding of g on the dense output
+
+
+@njit(**JIT_INLINE)
+def chord_clear(e, g0, g1, x, y_new, bend, p):
+    """True when event function e (critical, wall side or target: not affine) provably stays
+    above CLEAR_MARGIN along the step, so that first_root_lipschitz would find nothing: a
+    cheaper test than its slope bound, and a tighter one, which spares its bisection. Each
+    position departs from its chord by at most bend (see BEND), so it is within theta |dq| +
+    bend of its start and (1 - theta) |dq| + bend of its end; g is Lipschitz in the positions
+    (the tip's x with constants l1 and l2, min, max and abs with 1), so with A and B those
+    terms through g, g(theta) >= max(g0 - theta A, g1 - (1 - theta) A) - B >= (g0 + g1 - A) / 2 - B."""
+    dq1, dq2, dq3 = y_new[Q] - x[Q], y_new[Q + 1] - x[Q + 1], y_new[Q + 2] - x[Q + 2]
+    b1, b2, b3 = bend[Q], bend[Q + 1], bend[Q + 2]
+    if e == E_TARGET:
+        along, off = max(abs(dq1), abs(dq2), abs(dq3)), max(b1, b2, b3)
+    else:
+        along = p.link1_length * abs(dq1) + p.link2_length * abs(dq1 + dq2)
+        off = p.link1_length * b1 + p.link2_length * (b1 + b2)
+        if e == E_CRITICAL:
+            along, off = max(along, abs(dq3)), max(off, b3)
+    return g1 >= 0.0 and 0.5 * (g0 + g1 - along) - off > CLEAR_MARGIN
+
+
+@njit(**JIT_BORROW)
 def search_switches(x, y_new, h, k, robot, p, config, volts, g_old, g_new, g_try, x_try, coeffs, reach,
                     bend, stack, bracket, brackets, triggered):
     """exact_switches: find every mode switch inside the accepted step [t, t + h], including
@@ -514,7 +541,8 @@ def search_switches(x, y_new, h, k, robot, p, config, volts, g_old, g_new, g_try
                 slope = max(tip_x_slope, d3)
             else:
                 slope = max(d1, d2, d3)
-            if g_new[e] < 0.0 or g_old[e] + g_new[e] < slope:
+            if g_new[e] < 0.0 or (g_old[e] + g_new[e] < slope
+                                  and not chord_clear(e, g_old[e], g_new[e], x, y_new, bend, p)):
                 found = first_root_lipschitz(e, g_old[e], g_new[e], slope, x, h, k, robot, p, config, volts,
                                              g_try, x_try, stack, bracket)
         if not found:
@@ -543,7 +571,7 @@ def search_switches(x, y_new, h, k, robot, p, config, volts, g_old, g_new, g_try
     return any_event
 
 
-@njit(**JIT)
+@njit(**JIT_BORROW)
 def initial_step(x, f0, robot, p, config, volts, scale, y1, f1):
     """Hairer's starting step, as scipy's select_initial_step (order 5); scale, y1 and f1
     are work vectors of the state's size."""
@@ -574,8 +602,10 @@ def record(t, x, robot, p, config, volts, samples):
         applied_voltages(x, robot, p, config, volts)
         sample = samples[n]
         sample.t = t
-        sample.x[:] = x
-        sample.voltage[:] = volts
+        for i in range(x.shape[0]):  # element by element: a slice assignment of record arrays needs NRT
+            sample.x[i] = x[i]
+        for i in range(3):
+            sample.voltage[i] = volts[i]
         robot.n_samples = n + 1
 
 
@@ -603,10 +633,35 @@ def integrate(robot, p, config, t_end, log, samples):
     return integrate_with(robot, p, config, t_end, log, samples, new_workspace())
 
 
-@njit(**JIT)
+@njit(**JIT_BORROW)
 def integrate_with(robot, p, config, t_end, log, samples, workspace):
     """integrate() in the given work arrays (new_workspace): it allocates nothing and assigns
     no slices, so that numba-cuda compiles it as a device function."""
+    return integrate_timed(robot, p, config, t_end, log, samples, workspace, None)
+
+
+@intrinsic
+def cycles(typingctx):
+    """The CPU's cycle counter (llvm.readcyclecounter: rdtsc on x86), for the cost breakdown."""
+    def codegen(context, builder, signature, args):
+        counter = cgutils.get_or_insert_function(builder.module, llvm_ir.FunctionType(llvm_ir.IntType(64), []),
+                                                 "llvm.readcyclecounter")
+        return builder.call(counter, [])
+    return types.int64(), codegen
+
+
+# slots of the timers of integrate_timed [cycles]: the switch search (event values at the step's
+# end and the search inside it) and the event location (the root refinement, the mode switches
+# and the restart's bookkeeping, without its right-hand side)
+T_SEARCH, T_LOCATE = 0, 1
+N_TIMERS = 4  # the environment step adds its total (envs.core.T_STEP)
+
+
+@njit(**JIT_BORROW)
+def integrate_timed(robot, p, config, t_end, log, samples, workspace, timers):
+    """integrate_with, and with timers (an int64 array, not None) the cycles spent in the
+    parts named by T_SEARCH and T_LOCATE added to it. With timers None numba prunes every
+    timer branch before compiling: integrate_with's machine code has no trace of them."""
     n = N_STATE
     work, small, stack, triggered = workspace
     k = work[:7]
@@ -689,6 +744,8 @@ def integrate_with(robot, p, config, t_end, log, samples, workspace):
         robot.n_steps += 1
         factor = MAX_FACTOR if err == 0.0 else min(MAX_FACTOR, SAFETY * err ** -0.2)
 
+        if timers is not None:
+            started = cycles()
         event_values(y_new, robot, p, config, volts, g_new)
         if config.exact_switches:
             any_event = search_switches(x, y_new, h_step, k, robot, p, config, volts, g_old, g_new, g_try,
@@ -700,6 +757,9 @@ def integrate_with(robot, p, config, t_end, log, samples, workspace):
                 if triggered[e]:
                     any_event = True
                     brackets[0, e], brackets[1, e], brackets[2, e], brackets[3, e] = 0.0, 1.0, g_old[e], g_new[e]
+        if timers is not None:
+            searched = cycles()
+            timers[T_SEARCH] += searched - started
         if not any_event:
             t = t_end if last else t + h_step
             for i in range(n):
@@ -756,10 +816,17 @@ def integrate_with(robot, p, config, t_end, log, samples, workspace):
         settle_holds(t, x, robot, p, config, volts, log)
         if samples is not None:
             record(t, x, robot, p, config, volts, samples)
+        if timers is not None:
+            restarted = cycles()
         derivative(x, robot, p, config, k[0], volts)
         robot.n_rhs += 1
+        if timers is not None:
+            timers[T_LOCATE] += restarted - searched
+            located = cycles()
         event_values(x, robot, p, config, volts, g_old)
         h = h_step  # the step up to the event was accurate; keep its size
+        if timers is not None:
+            timers[T_LOCATE] += cycles() - located
         if stop:
             robot.step_size = h
             robot.t = t
@@ -767,6 +834,21 @@ def integrate_with(robot, p, config, t_end, log, samples, workspace):
     robot.step_size = h
     robot.t = t
     return STATUS_END
+
+
+@njit(**JIT)
+def rhs_cycles(states, robot, p, config, repeats):
+    """Cycles per right-hand side on the given states (rows), in the robot's modes: the unit
+    of the benchmark's cost breakdown. Returns (cycles, a checksum that keeps the loop)."""
+    out = np.empty(N_STATE)
+    volts = np.empty(3)
+    checksum = 0.0
+    started = cycles()
+    for _ in range(repeats):
+        for row in range(states.shape[0]):
+            derivative(states[row], robot, p, config, out, volts)
+            checksum += out[RATE]
+    return (cycles() - started) / (repeats * states.shape[0]), checksum
 
 
 # entry points for Python callers: one-element record arrays dispatch faster than records

@@ -35,6 +35,8 @@ def test_bench_quick_runs_and_reports_ratios(capsys):
     out = capsys.readouterr().out
     for section in ("x Pendulum-v1", "| Scara-C11-v0, voltage |", "| Scara-C11-v1, pd |",
                     "| Scara-C11-v0 | voltage | 64 |", "| Scara-C11-v1 | pd | 64 |",
+                    "Where a step's time goes, one env via gym.make (pd mode", "(voltage mode",
+                    "| env id | steps/s | total | Python | right-hand sides | switch search |",
                     "Integration tolerance", "| 1e-05 | 1e-06 |", "Peak memory", "cold (empty JIT cache)",
                     "GPU: "):
         assert section in out

@@ -7,15 +7,19 @@ import pytest
 
 from scara_gym.envs.core import (
     N_OBS,
+    N_TIMERS,
     OBSERVATION,
     OUTCOME,
     REWARD_TERMS,
+    T_STEP,
     TASK,
+    profile_robot,
     start_robot,
     step_robot,
 )
 from scara_gym.envs.task import OBSERVATION_LAYOUT, OBSERVATION_NAMES, ScaraTask
 from scara_gym.model import records as R
+from scara_gym.model.integrator import T_LOCATE, T_SEARCH
 
 
 def fresh_task(**kwargs) -> ScaraTask:
@@ -52,6 +56,22 @@ def test_a_step_writes_the_outcome_and_the_observation():
     assert np.array_equal(obs[OBSERVATION_LAYOUT["current"]], x[R.CURRENT:R.CURRENT + 3].astype(np.float32))
     assert obs[OBSERVATION_LAYOUT["time_left"]] == np.float32(1.0 - 0.01 / 3.0)
     assert robot["n_rhs"] > 0 and robot["n_steps"] > 0
+
+
+@pytest.mark.parametrize("exact_switches", [False, True])
+def test_the_timed_step_of_the_cost_breakdown_is_the_step_bit_for_bit(exact_switches):
+    """profile_robot (bench's cost breakdown) times the parts of the step without changing it."""
+    kwargs = dict(control_mode="pd", exact_switches=exact_switches, rtol=1e-7, atol=1e-9)
+    plain, timed = fresh_task(**kwargs), fresh_task(**kwargs)
+    timers = np.zeros(N_TIMERS, dtype=np.int64)
+    rng = np.random.default_rng(1)
+    for action in rng.uniform(-1.0, 1.0, (40, 3)):
+        assert call(plain, action) == profile_robot(0, action, timed.robots, timed.robot_params, timed.config,
+                                                    timed.task, timed.log, timed.outcomes, timed.obs, timers)
+    for name in ("robots", "outcomes", "obs", "log"):
+        assert getattr(plain, name).tobytes() == getattr(timed, name).tobytes()
+    assert timed.robots[0]["n_events"] > 0  # the location was timed too
+    assert 0 < timers[T_SEARCH] < timers[T_STEP] and 0 < timers[T_LOCATE] < timers[T_STEP]
 
 
 def test_a_non_finite_action_returns_a_status_and_changes_nothing():

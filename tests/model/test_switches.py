@@ -126,3 +126,54 @@ def test_collisions_and_reach_times_are_counted_without_the_log():
         runs.append(collisions)
     assert sum(runs[0]) >= 1  # the plain PD move hits the wall
     assert runs[0] == runs[1]
+
+
+def test_the_chord_bound_clears_only_steps_without_a_switch_and_more_than_the_slope_bound():
+    """chord_clear (the cheap test before first_root_lipschitz's bisection) never clears a step
+    whose critical, wall-side or target function dips below zero on the dense output, and it
+    clears steps that the slope bound (DENSE_SLOPE) sends to the bisection."""
+    from scara_gym.envs.task import ScaraTask
+    from scara_gym.model.integrator import BEND, chord_clear, dense_output, event_values, start
+
+    task = ScaraTask(control_mode="pd", exact_switches=True)
+    robots, params, configs = task.robots, task.robot_params, task.config
+    p, config = params[0], configs[0]
+    rng = np.random.default_rng(0)
+    theta = np.linspace(0.0, 1.0, 401)
+    h = 1e-3
+    cleared = {e: [0, 0] for e in (R.E_CRITICAL, R.E_SIDE, R.E_TARGET)}  # [by the chord bound only, by both]
+    dips = dict.fromkeys(cleared, 0)  # steps along which the function does go below zero
+    volts, g, g_new = np.zeros(3), np.zeros(R.N_EVENTS), np.zeros(R.N_EVENTS)
+    y, out = np.zeros(R.N_STATE), np.zeros(R.N_STATE)
+    for _ in range(1000):
+        x = np.zeros(R.N_STATE)
+        if rng.random() < 0.5:  # around the target
+            x[R.Q:R.Q + 3] = p["target"] + rng.normal(0.0, [0.6, 0.6, 0.1]) * rng.choice([0.01, 0.1])
+        else:  # anywhere: tips across the wall's plane, the critical band and the wall's height
+            x[R.Q:R.Q + 3] = rng.uniform([-np.pi, -2.5, 0.0], [np.pi, 2.5, 0.4])
+        robots[0]["x"] = x
+        start(robots, params, configs)
+        k = np.zeros((7, R.N_STATE))
+        k[:, R.Q:R.Q + 3] = rng.normal(0.0, 1.0, 3) * 20.0 * rng.choice([0.01, 0.1, 1.0]) \
+            + rng.normal(0.0, 1.0, (7, 3)) * rng.choice([0.0, 0.1, 1.0])
+        dense_output(x, h, k, 1.0, y)
+        g_old = event_values(x, robots[0], p, config, volts, g).copy()
+        event_values(y, robots[0], p, config, volts, g_new)
+        bend = np.zeros(R.N_STATE)
+        bend[:R.CURRENT + 3] = h * sum(BEND[s] * np.abs(k[s, :R.CURRENT + 3] - k[0, :R.CURRENT + 3])
+                                       for s in range(2, 7))
+        reach = DENSE_SLOPE * h * np.max(np.abs(k[[0, 2, 3, 4, 5, 6], R.Q:R.Q + 3]), axis=0)
+        tip_slope = p["link1_length"] * reach[0] + p["link2_length"] * (reach[0] + reach[1])
+        slopes = {R.E_SIDE: tip_slope, R.E_CRITICAL: max(tip_slope, reach[2]), R.E_TARGET: reach.max()}
+        lowest = np.full(R.N_EVENTS, np.inf)
+        for t in theta:
+            lowest = np.minimum(lowest, event_values(dense_output(x, h, k, t, out), robots[0], p, config, volts, g))
+        for e in cleared:
+            if g_old[e] < 0.0:
+                continue
+            dips[e] += lowest[e] < 0.0
+            if chord_clear(e, g_old[e], g_new[e], x, y, bend, p):
+                assert lowest[e] > 0.0, e
+                cleared[e][int(g_old[e] + g_new[e] >= slopes[e])] += 1
+    for e, (chord_only, both) in cleared.items():
+        assert chord_only > 0 and chord_only + both > 100 and dips[e] > 0, (e, chord_only, both, dips[e])
