@@ -1,16 +1,20 @@
-"""Files the agents write and read: written whole or not at all, and loaded without running code.
+"""Files the agents write and read: written whole or not at all, checked against their
+digests, and loaded without running code.
 
 Every file a run writes (models, checkpoints, configs, summaries, cache entries) goes to a
 temporary file beside its target and is renamed into place, so that a crash at any instant
 leaves either the old file or the new one, never a truncated one. Weights load with
 ``torch.load(weights_only=True)``, cache entries with ``numpy.load(allow_pickle=False)``: a
-file that holds anything but tensors, numbers and plain containers is refused, not run.
+file that holds anything but tensors, numbers and plain containers is refused, not run. A
+finished model folder (trained, published or shipped) carries a manifest of its files' SHA-256
+digests (``SHA256SUMS``), checked before its policy loads: a changed or corrupted file is refused.
 """
 
 from __future__ import annotations
 
 import contextlib
 import fcntl
+import hashlib
 import io
 import json
 import os
@@ -128,3 +132,38 @@ def exclusive(folder: str | Path) -> Iterator[Path]:
         del _HELD[folder]
         fcntl.flock(handle, fcntl.LOCK_UN)
         handle.close()
+
+
+POLICY_FILES = ("config.json", "model.zip", "model.pt", "vecnormalize.pkl")
+"""the files of a finished run that its policy's actions depend on"""
+DIGESTS = "SHA256SUMS"
+"""a model folder's manifest: ``sha256sum``'s format, one line per file the folder's policy loads"""
+
+
+def file_digest(path: str | Path) -> str:
+    """The SHA-256 of a file's bytes, in hex."""
+    return hashlib.sha256(Path(path).read_bytes()).hexdigest()
+
+
+def write_digests(folder: str | Path, names) -> Path:
+    """The manifest of ``folder``: the SHA-256 of each of ``names`` that it holds (atomically)."""
+    folder = Path(folder)
+    lines = [f"{file_digest(folder / name)}  {name}\n" for name in sorted(names) if (folder / name).is_file()]
+    return write_atomic(folder / DIGESTS, "".join(lines))
+
+
+def verify_digests(folder: str | Path) -> None:
+    """Where ``folder`` has a manifest, every file it lists must be there with that SHA-256; a file
+    changed, corrupted or missing is refused with an error naming it (a folder without one: no check)."""
+    folder = Path(folder)
+    manifest = folder / DIGESTS
+    if not manifest.exists():
+        return
+    for line in manifest.read_text().splitlines():
+        digest, _, name = line.partition("  ")
+        path = folder / name
+        if not path.is_file():
+            raise ValueError(f"{path}: listed in {manifest} but missing")
+        if file_digest(path) != digest:
+            raise ValueError(f"{path}: its SHA-256 is not the one {manifest} records; the file was changed or "
+                             "corrupted, and is refused")

@@ -31,7 +31,7 @@ from torch import nn
 
 from agents.algorithms.torch_ppo_config import Config
 from agents.algorithms.torch_ppo_hooks import Hook, hooks_for
-from agents.files import exclusive, load_torch, save_torch, write_json
+from agents.files import POLICY_FILES, exclusive, load_torch, save_torch, verify_digests, write_digests, write_json
 from scara_gym.wrappers import ResidualSetpoint, Shield
 
 LOG_SQRT_2PI = 0.5 * float(np.log(2 * np.pi))
@@ -421,6 +421,7 @@ def _train(config: Config, resume: bool, hooks: list[Hook] | None) -> dict:
     write_json(out / "summary.json", summary)
     # the run's record, as the SB3 trainer writes it: what the comparison reads
     write_json(out / "config.json", {**config.to_dict(), "algo": "torch-ppo", **summary})
+    write_digests(out, POLICY_FILES)
     return summary
 
 
@@ -436,6 +437,7 @@ def load_weights(agent: Agent, run_dir: Path) -> None:
     (Config.init_from); the optimizer and the reward scale start afresh."""
     if not (run_dir / "model.pt").exists():
         raise FileNotFoundError(f"init_from: no model.pt in {str(run_dir)!r}; give a folder written by scara-agents torch-ppo")
+    verify_digests(run_dir)
     saved = load_torch(run_dir / "model.pt")
     mine = (agent.obs_rms.mean.shape[0], agent.actor_logstd.shape[0], agent.weights[0].shape[-1])
     theirs = (saved["obs_size"], saved["action_size"], saved["hidden_size"])
@@ -452,6 +454,7 @@ class TorchPPOPolicy:
         run_dir = Path(run_dir)
         if not (run_dir / "model.pt").exists():
             raise FileNotFoundError(f"no model.pt in {str(run_dir)!r}: give a folder written by scara-agents torch-ppo")
+        verify_digests(run_dir)
         run_config = Config.from_dict(json.loads((run_dir / "config.json").read_text()))
         unwrapped = env.unwrapped
         if run_config.control_mode != unwrapped.control_mode:

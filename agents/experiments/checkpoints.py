@@ -19,7 +19,7 @@ from pathlib import Path
 import gymnasium as gym
 
 from agents.algorithms.sb3.policy import PPOPolicy
-from agents.files import write_json
+from agents.files import POLICY_FILES, write_digests, write_json
 from agents.policies import run_episode
 from scara_gym.registration import ENV_ID
 
@@ -71,4 +71,5 @@ def select_checkpoint(run: Path, out: Path, episodes: int = 5, seed: int = 5000)
                            f"{seed}..) and no collision, by scara-agents select")
     config["checkpoints"] = rows
     write_json(out / "config.json", config)
+    write_digests(out, POLICY_FILES)
     return best

@@ -21,7 +21,7 @@ import numpy as np
 from agents.algorithms.sb3.policy import PPOPolicy, SB3Policy
 from agents.experiments.conditions import Condition
 from agents.experiments.runs import is_finished
-from agents.files import load_arrays, save_arrays
+from agents.files import POLICY_FILES, load_arrays, save_arrays
 from agents.policies import DecHeuristic, PDPolicy, run_episode
 from agents.policies.optimal import OptimalPolicy
 from scara_gym import __version__
@@ -91,9 +91,6 @@ def episodes_of(env, policy, episodes: int, seed: int, identical: bool = False, 
             "return": np.array([r["return"] for r in results]),
             "trace": results[0]["trace"], "traces": [r["trace"] for r in results[:record]]}
 
-
-POLICY_FILES = ("config.json", "model.zip", "model.pt", "vecnormalize.pkl")
-"""the files of a finished run that its policy's actions depend on"""
 
 
 def evaluation_key(run_dir: Path, condition: Condition, mode: str, episodes: int, seed: int,

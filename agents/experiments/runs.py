@@ -22,7 +22,7 @@ from agents.algorithms.sb3.hyperparams import load_hyperparams
 from agents.algorithms.sb3.training import train as train_sb3, train_residual_ppo
 from agents.algorithms.torch_ppo_config import Config
 from agents.experiments.registry import RunSpec, spec
-from agents.files import RunLocked, exclusive, write_json
+from agents.files import POLICY_FILES, RunLocked, exclusive, verify_digests, write_digests, write_json
 from scara_gym.registration import TRAINING_ENV_ID
 
 
@@ -49,10 +49,12 @@ def publish(run: Path, dest: Path) -> Path:
     run, dest = Path(run), Path(dest)
     if not is_finished(run):
         raise ValueError(f"{run} is not a finished run (no config.json with model.zip or model.pt)")
+    verify_digests(run)
     for name in PUBLISHED:
         if (run / name).exists():
             (dest / name).parent.mkdir(parents=True, exist_ok=True)
             shutil.copy2(run / name, dest / name)
+    write_digests(dest, POLICY_FILES)
     return dest
 
 
@@ -106,6 +108,7 @@ def _train_torch_ppo(run: RunSpec, out: Path, seed: int, env_id: str, control_mo
         record = json.loads((out / "config.json").read_text())
         record["base_train_seconds"] = json.loads((base / "config.json").read_text())["train_seconds"]
         write_json(out / "config.json", record)
+        write_digests(out, POLICY_FILES)
     return out
 
 

@@ -211,6 +211,8 @@ def test_a_cached_evaluation_is_reused_only_for_the_same_model_condition_and_epi
     assert key != evaluation.evaluation_key(run, c11, "pd", 3, 1000, shield=True)
     model = (run / "model.pt").read_bytes()
     (run / "model.pt").write_bytes(model + b"\0")  # another model: not the cached one
+    from agents.files import POLICY_FILES, write_digests
+    write_digests(run, POLICY_FILES)  # its own manifest, as a run that wrote it would have
     with pytest.raises(AssertionError, match="evaluated again"):
         evaluation.learned_episodes(env, run, c11, "pd", 3, 1000, True, cache)
 

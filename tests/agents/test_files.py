@@ -58,6 +58,7 @@ def test_a_run_folder_with_a_hostile_model_or_checkpoint_is_refused(tmp_path):
     mark = tmp_path / "ran"
     for name in ("model.pt", "checkpoint.pt"):
         torch.save({"state_dict": Payload(mark), "agent": Payload(mark)}, run / name)
+    (run / files.DIGESTS).unlink()  # a folder from elsewhere, without a manifest: weights_only still refuses
     with pytest.raises(ValueError, match=r"model\.pt: not a weights file"):
         TorchPPOPolicy(gym.make("Scara-C11-v1"), run)
     with pytest.raises(ValueError, match=r"checkpoint\.pt: not a weights file"):
@@ -171,3 +172,58 @@ def test_a_run_killed_at_random_instants_resumes_to_the_same_end(tmp_path):
     assert summary["global_step"] == 1600 and files.load_torch(out / "checkpoint.pt")["update"] == 100
     assert not list(out.glob(".*.partial"))
     assert torch.isfinite(files.load_torch(out / "model.pt")["state_dict"]["actor_logstd"]).all()
+
+
+def test_every_shipped_and_published_model_folder_matches_its_manifest():
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[2]
+    folders = [*root.glob("agents/models/*"), *root.glob("docs/results/runs/*/*/*/seed*")]
+    assert len(folders) > 50
+    for folder in folders:
+        assert (folder / files.DIGESTS).exists(), folder
+        files.verify_digests(folder)
+
+
+def test_a_corrupted_model_file_is_refused_by_its_digest(tmp_path):
+    import shutil
+    from pathlib import Path
+
+    import gymnasium as gym
+
+    pytest.importorskip("stable_baselines3")
+    from agents.algorithms.sb3.policy import PPOPolicy
+
+    shipped = Path(__file__).resolve().parents[2] / "agents" / "models" / "ppo_pd"
+    copy = tmp_path / "ppo_pd"
+    shutil.copytree(shipped, copy)
+    PPOPolicy(gym.make("Scara-C11-v0"), copy)  # intact: loads
+    data = bytearray((copy / "model.zip").read_bytes())
+    data[len(data) // 2] ^= 0x01  # one flipped bit
+    (copy / "model.zip").write_bytes(bytes(data))
+    with pytest.raises(ValueError, match=r"model\.zip: its SHA-256 is not the one .*SHA256SUMS records"):
+        PPOPolicy(gym.make("Scara-C11-v0"), copy)
+    (copy / "vecnormalize.pkl").unlink()
+    (copy / "model.zip").write_bytes((shipped / "model.zip").read_bytes())
+    with pytest.raises(ValueError, match=r"vecnormalize\.pkl: listed in .* but missing"):
+        PPOPolicy(gym.make("Scara-C11-v0"), copy)
+
+
+def test_a_finished_torch_run_carries_its_manifest_and_a_changed_weight_is_refused(tmp_path):
+    torch = pytest.importorskip("torch")
+    import gymnasium as gym
+
+    from agents.algorithms.torch_ppo import Config, TorchPPOPolicy, train
+
+    run = tmp_path / "run"
+    train(Config(num_envs=2, num_steps=8, num_minibatches=1, update_epochs=1, total_timesteps=16, out=str(run)))
+    files.verify_digests(run)
+    assert {line.split()[1] for line in (run / files.DIGESTS).read_text().splitlines()} == {"config.json", "model.pt"}
+    saved = files.load_torch(run / "model.pt")
+    saved["state_dict"]["actor_logstd"] += 1.0
+    torch.save(saved, run / "model.pt")
+    with pytest.raises(ValueError, match=r"model\.pt: its SHA-256"):
+        TorchPPOPolicy(gym.make("Scara-C11-v1"), run)
+    with pytest.raises(ValueError, match=r"model\.pt: its SHA-256"):
+        train(Config(num_envs=2, num_steps=8, num_minibatches=1, update_epochs=1, total_timesteps=16,
+                     init_from=str(run), out=str(tmp_path / "fine-tune")))

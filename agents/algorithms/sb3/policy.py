@@ -8,6 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
+from agents.files import verify_digests
 from scara_gym.wrappers import ResidualSetpoint
 
 SHIPPED_MODELS = Path(__file__).resolve().parents[2] / "models"
@@ -49,6 +50,7 @@ class SB3Policy:
         import pickle
 
         model_dir = Path(model_dir)
+        verify_digests(model_dir)
         self.env = env.unwrapped
         config = json.loads((model_dir / "config.json").read_text())
         trained_mode = config["env_kwargs"]["control_mode"]

@@ -32,7 +32,7 @@ import numpy as np
 
 from agents.algorithms.sb3.hyperparams import load_hyperparams
 from agents.algorithms.sb3.policy import SHIPPED_MODELS, algorithm_class, residual_mapping
-from agents.files import exclusive, write_json
+from agents.files import POLICY_FILES, exclusive, write_digests, write_json
 from scara_gym.registration import ENV_KWARGS, GOAL_ENV_IDS, TRAINING_ENV_ID
 
 ALGORITHMS = ("ppo", "sac", "td3")
@@ -237,6 +237,7 @@ def _train(algo: str, out: str | Path, env_id: str, control_mode: str, seed: int
               "checkpoint_rule": "none: the policy at the end of the budget",
               "command": command or f"agents.algorithms.sb3.training.train({algo!r}, {str(out)!r}, {env_id!r}, {control_mode!r}, {seed})"}
     write_json(out / "config.json", config)
+    write_digests(out, POLICY_FILES)
     shutil.rmtree(out / "snapshot", ignore_errors=True)
     shutil.rmtree(out / "snapshot.old", ignore_errors=True)
     return out
