@@ -63,7 +63,12 @@ def tag(point: dict) -> str:
 
 
 def point_hyperparams(algo: str, env_id: str, control_mode: str, point: dict) -> dict:
-    """The run's hyperparameters with a grid point's overrides; a name they lack is an error."""
+    """The run's hyperparameters with a grid point's overrides; a name they lack is an error, and so
+    is a name or value that is not a plain word or number (they become folder names: tag)."""
+    for name, value in point.items():
+        if not PLAIN_NAME.fullmatch(str(name)) or not PLAIN_VALUE.fullmatch(str(value)):
+            raise ValueError(f"--grid: {name}={value!r} is not a plain name and value (letters, digits, "
+                             "'_', '.', '+', '-', not starting with '.'); grid points become folder names")
     hyper = hyperparams_of(algo, env_id, control_mode)
     unknown = sorted(set(point) - set(hyper))
     if unknown:
@@ -72,6 +77,8 @@ def point_hyperparams(algo: str, env_id: str, control_mode: str, point: dict) ->
     return {**hyper, **point}
 
 
+PLAIN_NAME = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
+PLAIN_VALUE = re.compile(r"[A-Za-z0-9_+-][A-Za-z0-9_.+-]*")
 EPISODE_ARRAYS = ("success", "collisions", "reach_time", "energy")
 
 

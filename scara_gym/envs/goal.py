@@ -54,6 +54,23 @@ def _costs(info, batch: int | None) -> np.ndarray | float:
     return float(cost) if batch is None and cost.ndim == 0 else cost
 
 
+def _goals(achieved_goal, desired_goal) -> tuple[np.ndarray, np.ndarray]:
+    """The goals as float64 arrays, checked: numbers of one shape (..., 3) [rad, rad, m], finite."""
+    try:
+        achieved = np.asarray(achieved_goal, dtype=np.float64)
+        desired = np.asarray(desired_goal, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise ValueError("achieved_goal and desired_goal must be arrays of numbers of shape (..., 3) "
+                         "[rad, rad, m]") from None
+    if achieved.shape != desired.shape or achieved.ndim == 0 or achieved.shape[-1] != 3:
+        raise ValueError(f"achieved_goal and desired_goal must have one shape (..., 3) [rad, rad, m], got "
+                         f"{achieved.shape} and {desired.shape}")
+    for name, goal in (("achieved_goal", achieved), ("desired_goal", desired)):
+        if not np.all(np.isfinite(goal)):
+            raise ValueError(f"{name} must be finite [rad, rad, m]; it holds NaN or inf")
+    return achieved, desired
+
+
 class GoalOutcome(NamedTuple):
     """What the goals and the info make of one step (or a batch of them)."""
 
@@ -79,9 +96,13 @@ class GoalRules:
 
     def outcome(self, achieved_goal, desired_goal, info) -> GoalOutcome:
         """Goals of shape (..., 3) give arrays of shape (...)."""
-        achieved = np.asarray(achieved_goal, dtype=np.float64)
-        desired = np.asarray(desired_goal, dtype=np.float64)
+        achieved, desired = _goals(achieved_goal, desired_goal)
         cost = _costs(info, None if achieved.ndim == 1 else achieved.shape[0])
+        if np.shape(cost) != achieved.shape[:-1]:
+            raise ValueError(f"info: one step's info per pair of goals, {achieved.shape[:-1] or 'one'}; got info for "
+                             f"{np.shape(cost) or 'one step'}")
+        if not np.all(np.isfinite(cost)) or np.any(np.asarray(cost) < 0):
+            raise ValueError("info['cost'] must be finite numbers >= 0 (the step's collision cost)")
         success = np.abs(achieved - desired).max(axis=-1) < self.threshold
         steps = -(~success).astype(np.float64)
         distance = -np.linalg.norm((achieved - desired) / DISTANCE_SCALE, axis=-1)
@@ -110,7 +131,8 @@ class _GoalAPI:
 
     def compute_truncated(self, achieved_goal, desired_goal, info):
         """False for every transition: only the time limit truncates."""
-        return _scalar(np.zeros(np.shape(achieved_goal)[:-1], dtype=bool))
+        achieved, _ = _goals(achieved_goal, desired_goal)
+        return _scalar(np.zeros(achieved.shape[:-1], dtype=bool))
 
 
 def _goal_spaces(task) -> spaces.Dict:

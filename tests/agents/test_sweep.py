@@ -93,3 +93,22 @@ def test_a_torch_ppo_trial_trains_and_is_evaluated(tmp_path):
     assert json.loads((tmp_path / "run" / "config.json").read_text())["ent_coef"] == 0.01
     with pytest.raises(ValueError, match=r"--grid names \['ent_cof'\]"):
         sweep.point_hyperparams("torch-ppo", "Scara-C11-v1", "pd", {"ent_cof": 0.0})
+
+
+@pytest.mark.parametrize("point", [{"learning_rate": "../../escape"}, {"learning_rate": "a/b"},
+                                   {"../x": 1}, {"learning_rate": ".hidden"}, {"learning_rate": "x y"}])
+def test_grid_points_that_are_not_plain_names_are_refused_before_any_folder(point, tmp_path):
+    with pytest.raises(ValueError, match="not a plain name and value"):
+        sweep.run_sweep("ppo", "Scara-C11-v1", "pd", seeds=[0], grid={k: [v] for k, v in point.items()}, out=tmp_path)
+    assert list(tmp_path.iterdir()) == []
+    assert sweep.tag({"learning_rate": 1e-05, "use_sde": True}) == "learning_rate=1e-05_use_sde=True"
+
+
+def test_a_shipped_model_is_named_plainly():
+    pytest.importorskip("stable_baselines3")
+    from agents.algorithms.sb3.policy import SHIPPED_MODELS, resolve_model
+
+    assert resolve_model("ppo_pd") == SHIPPED_MODELS / "ppo_pd"
+    for name in ("../models/ppo_pd", "ppo_pd/../ppo_pd", "../../agents/models/ppo_pd"):
+        with pytest.raises(FileNotFoundError, match="shipped model name"):
+            resolve_model(name)

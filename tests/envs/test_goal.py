@@ -198,3 +198,27 @@ def test_a_looser_goal_tolerance_ends_episodes_earlier_and_relabels_with_it():
     for bad in (0.0005, 2.0, float("nan")):
         with pytest.raises(ValueError, match=r"goal_tolerance must be a finite number in \[0.001, 1\]"):
             ScaraGoalEnv(goal_tolerance=bad)
+
+
+def test_compute_reward_refuses_goals_and_infos_that_do_not_fit():
+    env = ScaraGoalEnv()
+    achieved = np.zeros((4, 3))
+    infos = np.array([{"cost": 0.0}] * 4, dtype=object)
+    bad = [
+        (achieved, achieved + np.nan, infos, "desired_goal must be finite"),
+        (np.full((4, 3), np.inf), achieved, infos, "achieved_goal must be finite"),
+        (achieved, np.zeros((4, 2)), infos, r"one shape \(\.\.\., 3\).*\(4, 3\) and \(4, 2\)"),
+        (achieved, np.zeros(4), infos, "one shape"),
+        (achieved, achieved, [{"cost": 0.0}], r"one step's info per pair of goals, \(4,\); got info for \(1,\)"),
+        (achieved, achieved, {"cost": np.zeros(3)}, r"got info for \(3,\)"),
+        (achieved, achieved, {"cost": np.array([0.0, np.nan, 0.0, 0.0])}, "finite numbers >= 0"),
+        (achieved, achieved, {"cost": -np.ones(4)}, "finite numbers >= 0"),
+        ([["a", "b", "c"]], [["a", "b", "c"]], None, "arrays of numbers"),
+    ]
+    for a, d, info, says in bad:
+        for compute in (env.compute_reward, env.compute_terminated):
+            with pytest.raises(ValueError, match=says):
+                compute(a, d, info)
+    with pytest.raises(ValueError, match="one shape"):
+        env.compute_truncated(achieved, np.zeros((3, 3)), infos)
+    np.testing.assert_array_equal(env.compute_reward(achieved, achieved, infos), np.zeros(4))  # fit: as before

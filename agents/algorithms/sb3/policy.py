@@ -37,7 +37,7 @@ def resolve_model(name_or_path: str | Path) -> Path:
     path = Path(name_or_path)
     if (path / "model.zip").exists():
         return path
-    if (SHIPPED_MODELS / str(name_or_path) / "model.zip").exists():
+    if str(name_or_path) in shipped_models():
         return SHIPPED_MODELS / str(name_or_path)
     raise FileNotFoundError(f"no PPO model at {str(name_or_path)!r}: give a folder with model.zip "
                             f"or a shipped model name {shipped_models()}")
