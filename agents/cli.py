@@ -25,7 +25,6 @@ from pathlib import Path
 
 from agents.algorithms.sb3.hyperparams import load_hyperparams
 from agents.algorithms.sb3.policy import resolve_model
-from agents.algorithms.sb3.training import train_residual_ppo
 from agents.algorithms.torch_ppo_config import Config, parse_floats, parse_reward_weights
 from agents.experiments import sweep as sweeps
 from agents.experiments.checkpoints import select_checkpoint
@@ -36,7 +35,7 @@ from agents.experiments.registry import RUNS, spec
 from agents.experiments.report import comparison_figures, comparison_markdown, evaluation_report, markdown_table
 from agents.experiments.runs import campaign, hyperparams_of, train_run
 from agents.experiments.targets import target_checks
-from agents.files import RunLocked
+from agents.files import RunLocked, write_json
 from agents.policies.optimal import CollocationConfig
 from agents.policies.optimal.policy import solve_reference
 from scara_gym import DEFAULT_PARAMS
@@ -76,18 +75,16 @@ def _evaluate(args, argv) -> list[dict]:
     _positive("--episodes", args.episodes)
     rows, traces = evaluate(args.policies, args.control_mode, args.randomize_target, args.episodes, args.seed,
                             env_id=args.env_id)
-    model_dirs = [resolve_model(s.split(":", 1)[1]) for s in args.policies if s.startswith("ppo:")]
-    evaluation_report(rows, traces, args.out, model_dirs)
-    for spec_, row in zip(args.policies, rows):
-        if spec_.startswith("ppo:"):  # the figures a model is tested against once shipped (its results.json)
-            name = resolve_model(spec_.split(":", 1)[1]).name
-            (args.out / f"{name}_results.json").write_text(json.dumps({
-                "seed": args.seed, "episodes": args.episodes, "randomize_target": args.randomize_target,
-                "success_rate": row["success rate"], "collision_rate": row["collision rate"],
-                "mean_time_to_target": row["mean time to target [s]"],
-                "worst_time_to_target": row["worst time to target [s]"],
-                "episodes_outcomes": row["outcomes"], "command": "scara-agents " + " ".join(argv)}, indent=2))
-
+    models = {i: resolve_model(s.split(":", 1)[1]) for i, s in enumerate(args.policies) if s.startswith("ppo:")}
+    evaluation_report(rows, traces, args.out, list(models.values()))
+    for i, model_dir in models.items():  # the figures a model is tested against once shipped (its results.json)
+        row = rows[i]
+        write_json(args.out / f"{model_dir.name}_results.json", {
+            "seed": args.seed, "episodes": args.episodes, "randomize_target": args.randomize_target,
+            "success_rate": row["success rate"], "collision_rate": row["collision rate"],
+            "mean_time_to_target": row["mean time to target [s]"],
+            "worst_time_to_target": row["worst time to target [s]"],
+            "episodes_outcomes": row["outcomes"], "command": "scara-agents " + " ".join(argv)})
     print(markdown_table(COLUMNS, rows))
     return rows
 
@@ -140,9 +137,6 @@ def _train(args, argv) -> Path:
     if args.seed < 0:
         raise UserError(f"--seed must be an integer >= 0, got {args.seed}")
     run = spec(args.name)
-    if args.randomize_target and run.recipe != "ppo-residual":
-        raise UserError(f"--randomize-target is for the ppo-residual runs; {args.name} is registered for "
-                        "its own targets (the random-targets runs carry the tag)")
     overrides = {}
     for item in args.set:
         key, sep, value = item.partition("=")
@@ -159,19 +153,14 @@ def _train(args, argv) -> Path:
             hyper = {**hyperparams_of(args.name, args.env_id, args.control_mode),
                      **{k: _config_value(fields[k], v) for k, v in overrides.items()}}
         else:
-
             hyper = load_hyperparams(run.recipe, args.env_id, args.control_mode, run.variant, args.randomize_target)
             unknown = sorted(set(overrides) - set(hyper))
             if unknown:
                 raise UserError(f"--set names {unknown} that the YAML block lacks; it has {sorted(hyper)}")
             hyper.update({k: _yaml_value(v) for k, v in overrides.items()})
     out = args.out or Path("runs") / args.name / f"seed{args.seed}"
-    if run.recipe == "ppo-residual":
-
-        return train_residual_ppo(args.control_mode, args.randomize_target, args.seed, args.total_timesteps, out,
-                                  hyper, progress_bar=False, env_id=args.env_id, variant=run.variant)
     return train_run(args.name, out, args.seed, args.env_id, args.control_mode, args.total_timesteps, hyper,
-                     command="scara-agents " + " ".join(argv))
+                     command="scara-agents " + " ".join(argv), randomize_target=args.randomize_target)
 
 
 def _add_torch_ppo(sub) -> None:
@@ -278,9 +267,10 @@ def _compare(args, argv) -> list[dict]:
                                                            "command": "scara-agents " + " ".join(argv),
                                                            "targets": target_checks(entries),
                                                            "policies": entries}, indent=1))
-    (args.out / "comparison.md").write_text(comparison_markdown(entries))
+    report = comparison_markdown(entries)
+    (args.out / "comparison.md").write_text(report)
     comparison_figures(entries, traces, learned_runs(args.runs), args.out)
-    print(comparison_markdown(entries))
+    print(report)
     return entries
 
 
@@ -317,11 +307,9 @@ def _sweep(args, argv) -> list[dict]:
     if args.max_failures < 0:
         raise UserError(f"--max-failures must be >= 0, got {args.max_failures}")
     grid = sweeps.parse_grid(args.grid)
-    for point in sweeps.grid_points(grid):  # bad names fail here, before Ray starts
-        sweeps.point_hyperparams(args.run, args.env_id, args.control_mode, point)
     entries = sweeps.run_sweep(args.run, args.env_id, args.control_mode, args.seeds, grid, args.out, args.condition,
-                        args.episodes, args.total_timesteps, args.address, args.cpus_per_trial, args.max_failures,
-                        max_concurrent=args.max_concurrent)
+                               args.episodes, args.total_timesteps, args.address, args.cpus_per_trial,
+                               args.max_failures, max_concurrent=args.max_concurrent)
     print((args.out / "sweep.md").read_text())
     if args.publish is not None:
         sweeps.publish_trials(args.run, args.env_id, args.control_mode, args.seeds, grid, args.out, args.publish)

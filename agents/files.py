@@ -18,7 +18,6 @@ import hashlib
 import io
 import json
 import os
-import tempfile
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -26,20 +25,22 @@ import numpy as np
 
 
 def write_atomic(path: str | Path, data: bytes | str) -> Path:
-    """Write ``data`` to ``path`` through a temporary file in the same folder, flushed to disk
-    and renamed over the target (the rename is atomic on POSIX and Windows)."""
+    """Write ``data`` to ``path`` through a temporary file beside it, flushed to disk and renamed
+    over the target (the rename is atomic on POSIX and Windows). The temporary file has one name
+    per target (``.NAME.partial``; a file has one writer: run folders are locked), so one left by
+    a killed writer is overwritten and renamed away by the next write of that file."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     payload = data.encode() if isinstance(data, str) else data
-    handle, temporary = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".partial", dir=path.parent)
+    temporary = path.with_name(f".{path.name}.partial")
     try:
-        with os.fdopen(handle, "wb") as file:
+        with open(temporary, "wb") as file:
             file.write(payload)
             file.flush()
             os.fsync(file.fileno())
         os.replace(temporary, path)
     except BaseException:
-        Path(temporary).unlink(missing_ok=True)
+        temporary.unlink(missing_ok=True)
         raise
     return path
 

@@ -76,7 +76,6 @@ def main(quick: bool = False, her: bool = False, gpu: bool = False) -> str:
                  f"steps/s, ratio {figures['torch_ppo'] / figures['sb3_ppo']:.2f}")
     print(lines[-1], flush=True)
     if gpu:
-
         why_not = gpu_available()
         if why_not is not None:
             lines.append(f"PPO on the GPU: skipped: {why_not}")

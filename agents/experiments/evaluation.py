@@ -47,17 +47,14 @@ def make_policy(spec: str, env):
         raise ValueError(f"{kind} policies are given as {kind}:" + ("NAME (shipped) or ppo:MODEL_DIR" if kind == "ppo"
                                                                     else "RUN_DIR"))
     if kind == "ppo":
-
         return PPOPolicy(env, arg)
     if kind == "sb3":
-
         return SB3Policy(env, arg)
     if kind == "torchppo":
         from agents.algorithms.torch_ppo import TorchPPOPolicy
 
         return TorchPPOPolicy(env, arg)
     if kind == "optimal":
-
         return OptimalPolicy(env)
     raise ValueError(f"unknown policy {spec!r}; use {POLICY_SPECS}")
 
@@ -92,7 +89,6 @@ def episodes_of(env, policy, episodes: int, seed: int, identical: bool = False, 
             "trace": results[0]["trace"], "traces": [r["trace"] for r in results[:record]]}
 
 
-
 def evaluation_key(run_dir: Path, condition: Condition, mode: str, episodes: int, seed: int,
                    shield: bool = False) -> str:
     """What a learned run's evaluation depends on: its policy's files, the condition (and the
@@ -123,8 +119,8 @@ def learned_episodes(env, run_dir: Path, condition: Condition, mode: str, episod
 
 
 def _to_arrays(result: dict) -> dict[str, np.ndarray]:
-    """episodes_of's result as plain arrays (its traces numbered)."""
-    arrays = {k: v for k, v in result.items() if k != "traces"}
+    """episodes_of's result as plain arrays (its traces numbered; "trace" is traces_0)."""
+    arrays = {k: v for k, v in result.items() if k not in ("trace", "traces")}
     arrays.update({f"traces_{i}": trace for i, trace in enumerate(result["traces"])})
     return arrays
 
@@ -132,6 +128,7 @@ def _to_arrays(result: dict) -> dict[str, np.ndarray]:
 def _from_arrays(arrays: dict[str, np.ndarray]) -> dict:
     result = {k: v for k, v in arrays.items() if not k.startswith("traces_")}
     result["traces"] = [arrays[f"traces_{i}"] for i in range(sum(k.startswith("traces_") for k in arrays))]
+    result["trace"] = result["traces"][0]
     return result
 
 
@@ -139,7 +136,6 @@ def learned_policy(env, run_dir: Path, shield: bool = False):
     """The policy of a finished run: SB3's (model.zip) or the torch PPO's (model.pt); with
     ``shield``, behind scara_gym.wrappers.Shield (its model has the nominal parameters)."""
     if (Path(run_dir) / "model.zip").exists():
-
         policy = SB3Policy(env, run_dir)
     else:
         from agents.algorithms.torch_ppo import TorchPPOPolicy

@@ -63,7 +63,6 @@ def hyperparams_of(name: str, env_id: str = TRAINING_ENV_ID, control_mode: str =
     the torch PPO Config it gets but the run's identity (env, mode, seed, folder)."""
     run = spec(name)
     if run.trainer == "sb3":
-
         return load_hyperparams(run.recipe, env_id, control_mode, run.variant)
     fields = Config(**run.fields).to_dict()
     for name_ in ("env_id", "control_mode", "seed", "out"):
@@ -73,19 +72,22 @@ def hyperparams_of(name: str, env_id: str = TRAINING_ENV_ID, control_mode: str =
 
 def train_run(name: str, out: Path, seed: int, env_id: str = TRAINING_ENV_ID, control_mode: str = "pd",
               total_timesteps: int | None = None, hyperparams: dict | None = None,
-              command: str | None = None) -> Path:
+              command: str | None = None, randomize_target: bool = False) -> Path:
     """Train (or resume, or find finished) one run of the registered ``name`` into ``out``;
-    hyperparams: what to train with (default: hyperparams_of)."""
+    hyperparams: what to train with (default: hyperparams_of). randomize_target: targets drawn
+    per episode, for the ppo-residual runs (their YAML's "MODE-random" block); the other runs
+    are registered for their own targets."""
     run = spec(name)
+    if randomize_target and run.recipe != "ppo-residual":
+        raise ValueError(f"--randomize-target is for the ppo-residual runs (randomize_target=True); {name} is "
+                         "registered for its own targets (the random-targets runs carry the tag)")
     if run.trainer == "torch-ppo":
         return _train_torch_ppo(run, Path(out), seed, env_id, control_mode, total_timesteps, hyperparams)
     if run.recipe == "ppo-residual":
-
-        return train_residual_ppo(control_mode, seed=seed, total_timesteps=total_timesteps, out=out,
-                                  hyperparams=hyperparams, progress_bar=False, env_id=env_id, variant=run.variant)
-
+        return train_residual_ppo(control_mode, randomize_target, seed, total_timesteps, out, hyperparams,
+                                  progress_bar=False, env_id=env_id, variant=run.variant)
     return train_sb3(run.sb3_algorithm, out, env_id, control_mode, seed, hyperparams=hyperparams,
-                 total_timesteps=total_timesteps, command=command)
+                     total_timesteps=total_timesteps, command=command)
 
 
 def _train_torch_ppo(run: RunSpec, out: Path, seed: int, env_id: str, control_mode: str,
@@ -133,7 +135,7 @@ def campaign(names: list[str], seeds: list[int], runs: Path, env_id: str = TRAIN
         command = (f"scara-agents campaign {name} --seeds {seed} --env-id {env_id} --control-mode {control_mode} "
                    f"--runs {runs}")
         try:
-            with exclusive(run):  # held through a fine-tune's base run too
+            with exclusive(run):  # the run's folder, for the whole call (its trainer takes it again)
                 out = train_run(name, run, seed, env_id, control_mode, total_timesteps, command=command)
         except RunLocked:
             print(f"{name} seed {seed}: trained by another process, passed over", flush=True)

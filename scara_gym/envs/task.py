@@ -267,7 +267,11 @@ class ScaraTask:
 
     def setpoint_to_action(self, setpoint) -> np.ndarray:
         """The "pd" action (float64, unclipped) that commands the set-point q^ [rad, rad, m]."""
-        return (check_state("setpoint", setpoint, 3) - self.setpoint_center) / self.setpoint_half
+        return self._pd_actions(check_state("setpoint", setpoint, 3))
+
+    def _pd_actions(self, setpoints) -> np.ndarray:
+        """The "pd" actions (unclipped, unchecked) of set-points, batches too: the mapping's one formula."""
+        return (np.asarray(setpoints, dtype=float) - self.setpoint_center) / self.setpoint_half
 
     def action_to_setpoint(self, action) -> np.ndarray:
         """The "pd" set-point q^ [rad, rad, m] an action commands (batches too)."""
@@ -306,7 +310,7 @@ class ScaraTask:
         """The action that commands the set-point q^ [rad, rad, m] in this task's control mode:
         the clipped "pd" action, or the PD law's voltages (:meth:`pd_action`); batches too."""
         if self.control_mode == "pd":
-            return np.clip((np.asarray(setpoint, dtype=float) - self.setpoint_center) / self.setpoint_half, -1.0, 1.0)
+            return np.clip(self._pd_actions(setpoint), -1.0, 1.0)
         return self.pd_action(obs, setpoint)
 
     @staticmethod
