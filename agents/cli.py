@@ -4,7 +4,8 @@
     scara-agents train ppo-residual --env-id Scara-C11-v0 --seed 0 --out runs/ppo_pd
     scara-agents torch-ppo --total-timesteps 2000000 --out runs/torch_ppo
     scara-agents campaign ppo sac td3 --seeds 0 1 2 3 4
-    scara-agents compare --runs docs/results/runs --episodes 100 --out docs/results
+    scara-agents compare --runs docs/results/runs --episodes 30 --out docs/results
+    scara-agents curves --runs docs/results/runs --out docs/results
     scara-agents sweep --run sac --grid learning_rate=0.0003,0.001
     scara-agents select RUN --out models/NAME
     scara-agents optimal --condition c11
@@ -29,7 +30,7 @@ from agents.algorithms.torch_ppo_config import Config, parse_floats, parse_rewar
 from agents.experiments import sweep as sweeps
 from agents.experiments.checkpoints import select_checkpoint
 from agents.experiments.comparison import SHIELDED, compare_in_parallel
-from agents.experiments.conditions import CONDITIONS
+from agents.experiments.curves import robustness_curves, write_curves
 from agents.experiments.evaluation import COLUMNS, evaluate, learned_runs
 from agents.experiments.registry import RUNS, spec
 from agents.experiments.report import comparison_figures, comparison_markdown, evaluation_report, markdown_table
@@ -39,6 +40,7 @@ from agents.files import RunLocked, write_json
 from agents.policies.optimal import CollocationConfig
 from agents.policies.optimal.policy import solve_reference
 from scara_gym import DEFAULT_PARAMS
+from scara_gym.benchmark.protocol import CONDITIONS, FIXED_SHIFTS, protocol_record
 from scara_gym.registration import ENV_ID, ENV_IDS, TRAINING_ENV_ID
 
 MODES = ("pd", "voltage")
@@ -64,23 +66,28 @@ def _add_evaluate(sub) -> None:
     p.add_argument("--env-id", choices=ENV_IDS, default=ENV_ID,
                    help="the shipped PPO agents and tables use Scara-C11-v0; the optimal reference Scara-C11-v1")
     p.add_argument("--control-mode", choices=MODES, default="pd")
-    p.add_argument("--randomize-target", action="store_true")
-    p.add_argument("--episodes", type=int, default=100)
-    p.add_argument("--seed", type=int, default=1000, help="episode i uses seed + i")
+    p.add_argument("--condition", choices=list(CONDITIONS), default="c11",
+                   help="a condition of the evaluation protocol (scara_gym.benchmark.protocol), on its own seeds")
+    p.add_argument("--episodes", type=int, default=None, help="default: the condition's own count")
+    p.add_argument("--seed", type=int, default=None,
+                   help="episode i uses seed + i (default: the condition's evaluation seeds)")
     p.add_argument("--out", type=Path, default=Path("results"))
     p.set_defaults(handler=_evaluate)
 
 
 def _evaluate(args, argv) -> list[dict]:
-    _positive("--episodes", args.episodes)
-    rows, traces = evaluate(args.policies, args.control_mode, args.randomize_target, args.episodes, args.seed,
-                            env_id=args.env_id)
+    if args.episodes is not None:
+        _positive("--episodes", args.episodes)
+    if args.seed is not None and args.seed < 0:
+        raise UserError(f"--seed must be an integer >= 0, got {args.seed}")
+    rows, traces = evaluate(args.policies, args.control_mode, args.condition, args.episodes, env_id=args.env_id,
+                            seed=args.seed)
     models = {i: resolve_model(s.split(":", 1)[1]) for i, s in enumerate(args.policies) if s.startswith("ppo:")}
     evaluation_report(rows, traces, args.out, list(models.values()))
     for i, model_dir in models.items():  # the figures a model is tested against once shipped (its results.json)
         row = rows[i]
         write_json(args.out / f"{model_dir.name}_results.json", {
-            "seed": args.seed, "episodes": args.episodes, "randomize_target": args.randomize_target,
+            "condition": args.condition, "seeds": rows[i]["seeds"],
             "success_rate": row["success rate"], "collision_rate": row["collision rate"],
             "mean_time_to_target": row["mean time to target [s]"],
             "worst_time_to_target": row["worst time to target [s]"],
@@ -242,8 +249,8 @@ def _add_compare(sub) -> None:
     p.add_argument("--runs", type=Path, default=Path("runs/baselines"),
                    help="the folder of learned runs (ENV_ID/MODE/NAME/seedN)")
     p.add_argument("--conditions", nargs="+", choices=list(CONDITIONS), default=list(CONDITIONS))
-    p.add_argument("--episodes", type=int, default=100)
-    p.add_argument("--seed", type=int, default=1000, help="episode i uses seed + i")
+    p.add_argument("--episodes", type=int, default=None,
+                   help="episodes per condition (default: each condition's own; the C11 episode is one)")
     p.add_argument("--no-optimal", action="store_true", help="leave out the optimal reference")
     p.add_argument("--out", type=Path, default=Path("docs/results"))
     p.add_argument("--jobs", type=int, default=1, help="processes evaluating conditions side by side")
@@ -251,20 +258,26 @@ def _add_compare(sub) -> None:
                    help="learned runs to evaluate behind the shield as well (none: --shield)")
     p.add_argument("--cache", type=Path, default=None, metavar="DIR",
                    help="keep learned runs' evaluations in DIR and reuse them (e.g. runs/compare-cache)")
+    p.add_argument("--pilots", action="store_true", help="also the runs tagged 'pilot' (left out by default)")
+    p.add_argument("--no-robust-shield", action="store_true",
+                   help="leave out PD behind the robust shield in the shifted conditions (about 4 s per episode)")
     p.set_defaults(handler=_compare)
 
 
 def _compare(args, argv) -> list[dict]:
-    _positive("--episodes", args.episodes)
+    if args.episodes is not None:
+        _positive("--episodes", args.episodes)
     _positive("--jobs", args.jobs)
     if not args.runs.is_dir():
         raise UserError(f"--runs: no folder {str(args.runs)!r} (the learned runs, ENV_ID/MODE/NAME/seedN)")
     entries, traces = compare_in_parallel(args.runs, args.conditions, args.jobs, episodes=args.episodes,
-                                          seed=args.seed, include_optimal=not args.no_optimal, cache=args.cache,
-                                          shielded=tuple(args.shield))
+                                          include_optimal=not args.no_optimal, cache=args.cache,
+                                          shielded=tuple(args.shield), pilots=args.pilots,
+                                          robust_shield=not args.no_robust_shield)
     args.out.mkdir(parents=True, exist_ok=True)
     (args.out / "comparison.json").write_text(json.dumps({"env_id": TRAINING_ENV_ID,
                                                            "command": "scara-agents " + " ".join(argv),
+                                                           "conditions": protocol_record(args.conditions),
                                                            "targets": target_checks(entries),
                                                            "policies": entries}, indent=1))
     report = comparison_markdown(entries)
@@ -272,6 +285,29 @@ def _compare(args, argv) -> list[dict]:
     comparison_figures(entries, traces, learned_runs(args.runs), args.out)
     print(report)
     return entries
+
+
+def _add_curves(sub) -> None:
+    p = sub.add_parser("curves", help="robustness curves: success and time against shift and noise magnitude",
+                       description="PD behind the shield, the tuned heuristic and the learned baselines at growing "
+                                   "parameter shifts and sensor noise (agents.experiments.curves): curves.json and "
+                                   "comparison_robustness.png under --out.")
+    p.add_argument("--runs", type=Path, default=None, help="the folder of learned runs (none: classical only)")
+    p.add_argument("--episodes", type=int, default=20, help="episodes per point (and per seed)")
+    p.add_argument("--robust-shield", action="store_true", help="also PD behind the robust shield (slow)")
+    p.add_argument("--cache", type=Path, default=None, metavar="DIR", help="as compare --cache")
+    p.add_argument("--out", type=Path, default=Path("docs/results"))
+    p.set_defaults(handler=_curves)
+
+
+def _curves(args, argv) -> dict:
+    _positive("--episodes", args.episodes)
+    if args.runs is not None and not args.runs.is_dir():
+        raise UserError(f"--runs: no folder {str(args.runs)!r} (the learned runs, ENV_ID/MODE/NAME/seedN)")
+    data = robustness_curves(args.runs, args.episodes, cache=args.cache, robust_shield=args.robust_shield)
+    data["command"] = "scara-agents " + " ".join(argv)
+    write_curves(data, args.out)
+    return data
 
 
 def _add_sweep(sub) -> None:
@@ -343,9 +379,9 @@ def _add_optimal(sub) -> None:
     p.add_argument("--target", nargs=3, type=float, default=list(DEFAULT_PARAMS.task.target))
     p.add_argument("--write", type=Path, default=None,
                    help="write the solutions as JSON here (the shipped file: agents/optimal_solutions/c11.json)")
-    shifts = [name for name, c in CONDITIONS.items() if not c.randomize_target]
+    shifts = ["c11", *FIXED_SHIFTS]
     p.add_argument("--condition", choices=shifts, default="c11",
-                   help="a parameter shift of the comparison; default c11, the C11 parameters")
+                   help="a fixed parameter shift of the protocol; default c11, the C11 parameters")
     p.add_argument("--wall-margin", type=float, default=CollocationConfig.wall_margin,
                    help="m, distance the held solution keeps from the wall plane while below h_obs (default "
                         "%(default)s; a wider one gives the torch PPO's demo resets states with slack)")
@@ -359,7 +395,7 @@ def _optimal(args, argv) -> dict:
         raise UserError(f"--wall-margin must be in [0, {params.obstacle.critical_distance}) m (the critical band), "
                         f"got {args.wall_margin}")
     record = solve_reference(args.start, args.target, params, args.wall_margin, args.verbose)
-    data = {**record, "condition": args.condition, "overrides": CONDITIONS[args.condition].params,
+    data = {**record, "condition": args.condition, "overrides": dict(CONDITIONS[args.condition].params),
             "command": "scara-agents optimal" + (f" --start {' '.join(map(str, args.start))}"
                                                  f" --target {' '.join(map(str, args.target))}"
                                                  f" --condition {args.condition}")
@@ -387,12 +423,21 @@ def _bench(args, argv) -> str:
     return agents_bench.main(args.quick, args.her, args.gpu)
 
 
+class _Parser(argparse.ArgumentParser):
+    """argparse's parser with its errors in one line (``PROG: error: ...``, exit status 2), as
+    the subcommands' own errors are; ``--help`` shows the usage."""
+
+    def error(self, message: str):
+        print(f"{self.prog}: error: {message} (see {self.prog} --help)", file=sys.stderr)
+        raise SystemExit(2)
+
+
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog="scara-agents", description="The agents of scara_gym: evaluate, train, compare, sweep.")
+    parser = _Parser(prog="scara-agents", description="The agents of scara_gym: evaluate, train, compare, sweep.")
     parser.add_argument("--debug", action="store_true", help="show the traceback of an error")
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
-    for add in (_add_evaluate, _add_train, _add_torch_ppo, _add_campaign, _add_compare, _add_sweep, _add_select,
-                _add_optimal, _add_bench):
+    for add in (_add_evaluate, _add_train, _add_torch_ppo, _add_campaign, _add_compare, _add_curves, _add_sweep,
+                _add_select, _add_optimal, _add_bench):
         add(sub)
     return parser
 

@@ -32,6 +32,7 @@ from torch import nn
 from agents.algorithms.torch_ppo_config import Config
 from agents.algorithms.torch_ppo_hooks import Hook, hooks_for
 from agents.files import POLICY_FILES, exclusive, load_torch, save_torch, verify_digests, write_digests, write_json
+from scara_gym.benchmark.protocol import SENSOR_NOISE
 from scara_gym.wrappers import ResidualSetpoint, Shield
 
 LOG_SQRT_2PI = 0.5 * float(np.log(2 * np.pi))
@@ -220,6 +221,9 @@ def make_env(config: Config):
                         autoreset_mode="SameStep", control_mode=config.control_mode,
                         randomize_target=config.randomize_target, device=config.device,
                         **({"randomize_params": config.randomize_params} if config.randomize_params else {}),
+                        **({"randomize_start": True} if config.randomize_start else {}),
+                        **({"sensor_noise": {k: config.sensor_noise * v for k, v in SENSOR_NOISE.items()}}
+                           if config.sensor_noise else {}),
                         **({"reward_weights": weights} if weights else {}),
                         **({"num_threads": config.env_threads} if config.device == "cpu" else {}))
 

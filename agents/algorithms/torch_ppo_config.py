@@ -17,6 +17,8 @@ class Config:
     control_mode: str = "pd"
     randomize_target: bool = False
     randomize_params: str | None = None  # domain randomization per episode: a preset of scara_gym.envs.randomization
+    randomize_start: bool = False  # starts drawn per episode from the protocol's start region
+    sensor_noise: float = 0.0      # noisy sensors at this multiple of the protocol's SENSOR_NOISE levels
     reward_weights: dict[str, float] = field(default_factory=dict)  # env reward weights to change (none: the env's)
     residual_scale: tuple[float, float, float] | None = None  # act through a residual set-point around the target
     residual_deadzone: float = 0.2  # (scara_gym.wrappers.residual: an engineered agent, not plain PPO)

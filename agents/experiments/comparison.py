@@ -1,14 +1,17 @@
-"""The comparison: learned vs classical vs optimal, every policy over the same evaluation seeds.
+"""The comparison: learned vs classical vs optimal, every policy in the protocol's conditions.
 
-Every policy runs the same episodes (seeds 1000..) of ``Scara-C11-v1`` in every condition
-(:data:`agents.experiments.conditions.CONDITIONS`: the C11 target with the wall, randomized
-targets, and the C11 target under four parameter shifts):
+Every policy runs the same episodes of every condition of the evaluation protocol
+(:mod:`scara_gym.benchmark.protocol`: the C11 episode, perturbed starts, randomized targets,
+drawn and fixed parameter shifts, sensor noise, actuation delay, a rate limit), on
+``TRAINING_ENV_ID``, each condition on its own evaluation seeds:
 
-- policies: ``pd`` (the classical baseline), the seed's ``dec`` heuristic in both variants at its
-  smallest safe trigger distance (bisected in each condition) and with a 20 % margin, ``optimal``
-  (the minimum-time reference, "voltage" mode; skipped with randomized targets, which would need
-  one solve per target), and every learned run under ``RUNS/ENV_ID/MODE/NAME/seedN``, one entry
-  per registered run over its seeds;
+- policies: ``pd`` (the classical baseline); the seed's ``dec`` heuristic in both variants at its
+  trigger distance tuned once on the tuning set and at 1.2 times it
+  (:mod:`agents.experiments.tuning`: never re-tuned on a condition it is scored on); ``optimal``
+  (the minimum-time replay, "voltage" mode) where the condition keeps the C11 start, target and
+  parameters and a solution is shipped (an open-loop replay does not see sensor noise); and
+  every learned run under ``RUNS/ENV_ID/MODE/NAME/seedN``, one entry per registered run over
+  its seeds;
 - behind scara_gym.wrappers.Shield (its model: the nominal parameters): PD and the runs named by
   ``shielded`` (default: those tagged "also-shielded"), as entries "... + shield". Runs trained
   behind the shield (tag "shielded") always act behind it.
@@ -24,37 +27,65 @@ import json
 import time
 from pathlib import Path
 
-from agents.experiments.conditions import CONDITIONS, make_env
-from agents.experiments.evaluation import episodes_of, learned_episodes, learned_runs
+from agents.experiments.evaluation import learned_episodes, learned_runs
 from agents.experiments.registry import RUNS, tagged
 from agents.experiments.statistics import entry, probability_faster, rate_text, time_scores, training_seconds
-from agents.policies import DecHeuristic, PDPolicy, smallest_safe_distance
+from agents.experiments.tuning import tune_heuristic
+from agents.policies import DecHeuristic, PDPolicy
 from agents.policies.optimal import OptimalPolicy
+from scara_gym.benchmark.protocol import evaluate, get_condition
 from scara_gym.wrappers import Shield
 
 SHIELDED = tagged("also-shielded")
 """registered runs the comparison also evaluates behind the shield by default (``--shield``)"""
 SHIELD_SUFFIX = " + shield"
 SHIELD_NOTE = "scara_gym.wrappers.Shield with the nominal parameters"
+ROBUST_RANGES = "all"
+"""the robust shield's ranges (scara_gym.envs.randomization's preset): every shift of the protocol lies inside"""
+ROBUST_LABEL = f"pd + robust shield ({ROBUST_RANGES!r} ranges)"
+ROBUST_NOTE = (f"scara_gym.wrappers.Shield with the nominal parameters, robust over the {ROBUST_RANGES!r} ranges "
+               "(their ends and 8 draws, robust_seed 0)")
+HEURISTIC_VARIANTS = ("continue", "restart")
+OPTIMAL_CONDITIONS = ("c11", "sensor-noise", "sensor-noise-x5")
+"""conditions where the optimal replay applies: the C11 start, target and parameters"""
+
+
+def tuned_heuristics(verbose: bool = False) -> dict:
+    """variant -> tune_heuristic's record (the heuristic's rows use these distances everywhere)."""
+    tuned = {}
+    for variant in HEURISTIC_VARIANTS:
+        try:
+            tuned[variant] = tune_heuristic(variant)
+        except RuntimeError as error:  # no trigger distance clears the tuning set
+            tuned[variant] = {"distance": None, "error": str(error)}
+        if verbose:
+            print(f"[tuning] dec-{variant}: {tuned[variant]}", flush=True)
+    return tuned
 
 
 def compare(runs_root: Path | None = Path("runs/baselines"), conditions: list[str] = ("c11",),
-            episodes: int = 100, seed: int = 1000, include_optimal: bool = True, verbose: bool = True,
-            bisection_tolerance: float = 5e-4, cache: Path | None = None, shielded: tuple[str, ...] = SHIELDED):
-    """Every policy in every condition: (entries, traces per condition). Every policy here is
-    deterministic, so in a condition without draws (fixed target and parameters) its episodes
-    are one episode repeated: episodes_of runs two and checks that. cache: a folder that keeps
-    learned runs' evaluations (learned_episodes). shielded: learned algorithms that also run
-    behind scara_gym.wrappers.Shield (entries "ALGO + shield"), as PD does ("pd + shield") where
-    any is given. Every entry says whether a shield acts ("shielded"); a learned one names its
-    runs' folder ("run") and carries their registry tags ("tags")."""
+            episodes: int | None = None, include_optimal: bool = True, verbose: bool = True,
+            cache: Path | None = None, shielded: tuple[str, ...] = SHIELDED, heuristics: dict | None = None,
+            pilots: bool = False, robust_shield: bool = True):
+    """Every policy in every condition: (entries, traces per condition). episodes: per condition
+    (None: the condition's own count; the C11 episode is one). cache: a folder that keeps learned
+    runs' evaluations (learned_episodes). shielded: learned algorithms that also run behind
+    scara_gym.wrappers.Shield (entries "ALGO + shield"), as PD does ("pd + shield") where any is
+    given. heuristics: tuned_heuristics() (computed here where None). pilots: also the runs
+    tagged "pilot" (left out by default). robust_shield: PD behind the robust shield where the
+    condition shifts the parameters. Every entry says whether a shield acts ("shielded") and for
+    which parameters it is built ("shield_range": "nominal" or the robust ranges); a learned one
+    names its runs' folder ("run") and carries their registry tags ("tags")."""
     entries, traces = [], {}
+    heuristics = tuned_heuristics(verbose) if heuristics is None else heuristics
     groups = learned_runs(runs_root) if runs_root is not None else {}
+    if not pilots:
+        groups = {key: dirs for key, dirs in groups.items() if "pilot" not in getattr(RUNS.get(key[0]), "tags", ())}
     for name in conditions:
         started = time.perf_counter()
-        table = _ConditionTable(CONDITIONS[name], verbose)
-        table.classical(episodes, seed, bisection_tolerance, shielded, include_optimal)
-        table.learned(groups, episodes, seed, cache, shielded)
+        table = _ConditionTable(get_condition(name), episodes, verbose)
+        table.classical(heuristics, shielded, include_optimal, robust_shield)
+        table.learned(groups, cache, shielded)
         entries += table.entries
         traces[name] = table.traces
         if verbose:
@@ -65,17 +96,18 @@ def compare(runs_root: Path | None = Path("runs/baselines"), conditions: list[st
 class _ConditionTable:
     """The entries and first-episode traces of one condition, as they are added."""
 
-    def __init__(self, condition, verbose: bool) -> None:
+    def __init__(self, condition, episodes: int | None, verbose: bool) -> None:
         self.condition, self.verbose = condition, verbose
-        self.same = not condition.randomize_target  # every episode alike (see episodes_of)
+        self.episodes = 1 if condition.episodes == 1 else episodes  # the C11 episode is one episode
         self.entries: list[dict] = []
         self.traces: dict = {}
-        self.reference = None  # the heuristic learned agents are compared with: dec-continue, smallest safe distance
+        self.reference = None  # the heuristic learned agents are compared with: dec-continue at its tuned distance
 
     def add(self, label, kind, algorithm, mode, runs, seeds, note="", train_seconds=None, shielded=False, tags=(),
-            run=None) -> dict:
+            run=None, shield_range=None) -> dict:
         e = {**entry(label, kind, algorithm, mode, self.condition.name, runs, seeds, note, train_seconds),
-             "shielded": shielded, "run": run, "tags": sorted(tags)}
+             "shielded": shielded, "shield_range": shield_range or ("nominal" if shielded else None), "run": run,
+             "tags": sorted(tags)}
         self.entries.append(e)
         self.traces[label] = runs[0]["trace"]
         if self.verbose:
@@ -84,48 +116,47 @@ class _ConditionTable:
                   f"energy {e['energy_mean']:.1f} J", flush=True)
         return e
 
-    def classical(self, episodes: int, seed: int, bisection_tolerance: float, shielded, include_optimal: bool) -> None:
-        """PD (and behind the shield), the heuristic at its smallest safe distance and +20 %, the optimal replay."""
+    def run(self, factory, mode: str = "pd") -> dict:
+        return evaluate(self.condition, factory, mode, self.episodes)
 
-        condition, same = self.condition, self.same
-        env = make_env(condition, "pd")
-        self.add("pd", "pd", None, "pd", [episodes_of(env, PDPolicy(env), episodes, seed, same)], None)
-        if shielded:
-            self.add("pd" + SHIELD_SUFFIX, "pd", None, "pd",
-                     [episodes_of(env, Shield(env, PDPolicy(env)), episodes, seed, same)], None, note=SHIELD_NOTE,
-                     shielded=True)
-        for variant in ("continue", "restart"):
-            try:  # the bisection runs episode 0 of the evaluation seeds
-                smallest, _ = smallest_safe_distance(variant, tolerance=bisection_tolerance, env=env, seed=seed)
-            except RuntimeError:  # no trigger distance clears the wall in this condition
+    def classical(self, heuristics: dict, shielded, include_optimal: bool, robust_shield: bool = True) -> None:
+        """PD (and behind the shield: the nominal one, and the robust one where the parameters
+        shift), the heuristic at its tuned distance and with the margin, the optimal replay."""
+        self.add("pd", "pd", None, "pd", [self.run(PDPolicy)], None)
+        self.add("pd" + SHIELD_SUFFIX, "pd", None, "pd", [self.run(lambda env: Shield(env, PDPolicy(env)))], None,
+                 note=SHIELD_NOTE, shielded=True)
+        shifted = self.condition.params or self.condition.env_kwargs.get("randomize_params")
+        if robust_shield and shifted:
+            runs = [self.run(lambda env: Shield(env, PDPolicy(env), robust=ROBUST_RANGES))]
+            self.add(ROBUST_LABEL, "pd", None, "pd", runs, None, note=ROBUST_NOTE, shielded=True,
+                     shield_range=ROBUST_RANGES)
+        for variant, tuned in heuristics.items():
+            if tuned.get("distance") is None:
                 continue
-            for label, distance in (("smallest safe", smallest), ("+20 %", 1.2 * smallest)):
-                policy = DecHeuristic(env, variant, critical_distance=distance)
-                runs = [episodes_of(env, policy, episodes, seed, same)]
-                self.reference = self.reference or runs
+            for label, distance in (("tuned", tuned["distance"]), ("margin", tuned["margin_distance"])):
+                runs = [self.run(lambda env, d=distance, v=variant: DecHeuristic(env, v, critical_distance=d))]
+                if variant == "continue" and label == "tuned":
+                    self.reference = runs
                 self.add(f"dec-{variant}, {label} (d={distance:.4f} m)", "heuristic", None, "pd", runs, None,
-                         note=f"trigger distance {distance:.4f} m (smallest safe in this condition: {smallest:.4f} m)")
-        if include_optimal and not condition.randomize_target:
-            env = make_env(condition, "voltage")
+                         note=f"trigger distance {distance:.4f} m, tuned once on the tuning set "
+                              f"(agents.experiments.tuning: {tuned['distance']:.4f} m)")
+        if include_optimal and self.condition.name in OPTIMAL_CONDITIONS:
             try:  # the shipped solutions only: a solve takes minutes to hours
-                runs = [episodes_of(env, OptimalPolicy(env, solve_missing=False), episodes, seed, same)]
+                runs = [self.run(lambda env: OptimalPolicy(env, solve_missing=False), "voltage")]
             except LookupError:
                 if self.verbose:
-                    print(f"[{condition.name}] optimal: no shipped solution (scara-agents optimal --condition "
-                          f"{condition.name} --write agents/optimal_solutions/{condition.name}.json)", flush=True)
+                    print(f"[{self.condition.name}] optimal: no shipped solution", flush=True)
             else:
                 self.add("optimal", "optimal", None, "voltage", runs, None,
                          note="minimum-time voltages held over the control steps (agents.policies.optimal)")
 
-    def learned(self, groups: dict, episodes: int, seed: int, cache, shielded) -> None:
+    def learned(self, groups: dict, cache, shielded) -> None:
         """Every learned run's seeds (and behind the shield where ``shielded`` names it)."""
         for (algorithm, mode), run_dirs in sorted(groups.items()):
-            env = make_env(self.condition, mode)
             configs = [json.loads((d / "config.json").read_text()) for d in run_dirs]
             tags = RUNS[algorithm].tags if algorithm in RUNS else frozenset()
             for shield in (False, True) if algorithm in shielded else (False,):
-                runs = [learned_episodes(env, d, self.condition, mode, episodes, seed, self.same, cache, shield)
-                        for d in run_dirs]
+                runs = [learned_episodes(d, self.condition, mode, self.episodes, cache, shield) for d in run_dirs]
                 label = algorithm + (SHIELD_SUFFIX if shield else "")
                 e = self.add(label, "learned", label, mode, runs, [c["seed"] for c in configs],
                              note=SHIELD_NOTE if shield else "", train_seconds=[training_seconds(c) for c in configs],
@@ -143,7 +174,8 @@ def _compare_condition(arguments: tuple) -> tuple[list[dict], dict]:
 
 def compare_in_parallel(runs_root: Path | None, conditions: list[str], jobs: int, **kwargs):
     """compare() with the conditions spread over ``jobs`` processes: the same entries, in the
-    same order (each condition is evaluated on its own)."""
+    same order (each condition is evaluated on its own; the heuristic is tuned once, here)."""
+    kwargs.setdefault("heuristics", tuned_heuristics(kwargs.get("verbose", True)))
     if jobs <= 1 or len(conditions) <= 1:
         return compare(runs_root, conditions, **kwargs)
     from concurrent.futures import ProcessPoolExecutor
@@ -151,3 +183,4 @@ def compare_in_parallel(runs_root: Path | None, conditions: list[str], jobs: int
     with ProcessPoolExecutor(min(jobs, len(conditions))) as pool:
         parts = list(pool.map(_compare_condition, [(runs_root, name, kwargs) for name in conditions]))
     return [e for entries, _ in parts for e in entries], {k: v for _, traces in parts for k, v in traces.items()}
+

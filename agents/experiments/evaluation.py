@@ -15,19 +15,20 @@ import hashlib
 import json
 from pathlib import Path
 
-import gymnasium as gym
 import numpy as np
 
 from agents.algorithms.sb3.policy import PPOPolicy, SB3Policy
-from agents.experiments.conditions import Condition
 from agents.experiments.runs import is_finished
 from agents.files import POLICY_FILES, load_arrays, save_arrays
-from agents.policies import DecHeuristic, PDPolicy, run_episode
+from agents.policies import DecHeuristic, PDPolicy
 from agents.policies.optimal import OptimalPolicy
 from scara_gym import __version__
+from scara_gym.benchmark.protocol import Condition, evaluate as evaluate_condition, get_condition
 from scara_gym.registration import ENV_ID, TRAINING_ENV_ID
 from scara_gym.wrappers import Shield
 
+SHIELD_KEY = b"scara_gym.wrappers.Shield with a committed backup, defaults"
+"""what a shielded evaluation's cache key says of the shield (changed with the shield's rules)"""
 POLICY_SPECS = "pd, dec-continue[:d], dec-restart[:d], optimal, ppo:NAME_OR_DIR, sb3:RUN_DIR, torchppo:RUN_DIR, shield:SPEC"
 
 
@@ -59,37 +60,12 @@ def make_policy(spec: str, env):
     raise ValueError(f"unknown policy {spec!r}; use {POLICY_SPECS}")
 
 
-SUMMARY_KEYS = ("success", "collisions", "reach_time", "energy", "steps")
+TASK_KWARGS = ("goal_tolerance",)
+"""environment arguments that define the task a run trains for (not its reward or its physics):
+an evaluation that uses a run's own reports them beside the benchmark's"""
 
 
-def _same_episode(a: dict, b: dict) -> bool:
-    return all(a[key] == b[key] or (key == "reach_time" and np.isnan(a[key]) and np.isnan(b[key]))
-               for key in SUMMARY_KEYS)
-
-
-def episodes_of(env, policy, episodes: int, seed: int, identical: bool = False, record: int = 1) -> dict:
-    """Per-episode arrays of one policy over the seeds ``seed, seed + 1, ...``, with the traces
-    of the first ``record`` episodes ("trace": the first one's; "traces": all of them).
-    identical: the condition draws nothing per episode (fixed start, target and parameters)
-    and the policy is deterministic, so that every episode is the first one: then the first
-    two are run and, where they are the same, the first stands for all (else every episode
-    runs)."""
-    results = [run_episode(env, policy, seed=seed + i, record=i < record) for i in range(min(episodes, 2))]
-    if identical and episodes > 2 and _same_episode(*results):
-        results += [results[0]] * (episodes - 2)
-    else:
-        results += [run_episode(env, policy, seed=seed + i, record=i < record) for i in range(len(results), episodes)]
-    reach = np.array([r["reach_time"] if r["success"] else np.nan for r in results])
-    return {"success": np.array([r["success"] for r in results]),
-            "collisions": np.array([r["collisions"] > 0 for r in results]),
-            "collision_counts": np.array([r["collisions"] for r in results]),
-            "reach_time": reach, "energy": np.array([r["energy"] for r in results]),
-            "peak_current_fraction": np.array([r["peak_current_fraction"] for r in results]),
-            "return": np.array([r["return"] for r in results]),
-            "trace": results[0]["trace"], "traces": [r["trace"] for r in results[:record]]}
-
-
-def evaluation_key(run_dir: Path, condition: Condition, mode: str, episodes: int, seed: int,
+def evaluation_key(run_dir: Path, condition: Condition, mode: str, episodes: int | None,
                    shield: bool = False) -> str:
     """What a learned run's evaluation depends on: its policy's files, the condition (and the
     environment it builds), the episodes, the package version and whether a shield acts."""
@@ -98,28 +74,35 @@ def evaluation_key(run_dir: Path, condition: Condition, mode: str, episodes: int
         if (Path(run_dir) / name).exists():
             digest.update(name.encode() + (Path(run_dir) / name).read_bytes())
     if shield:
-        digest.update(b"agents.shield.Shield, defaults")  # the key as the cache was first written
-    digest.update(json.dumps([dataclasses.asdict(condition), mode, episodes, seed, TRAINING_ENV_ID, __version__],
-                             sort_keys=True).encode())
+        digest.update(SHIELD_KEY)
+    digest.update(json.dumps([dataclasses.asdict(condition), mode, condition.seeds(episodes), TRAINING_ENV_ID,
+                              __version__], sort_keys=True, default=str).encode())
     return digest.hexdigest()[:32]
 
 
-def learned_episodes(env, run_dir: Path, condition: Condition, mode: str, episodes: int, seed: int,
-                     identical: bool, cache: Path | None = None, shield: bool = False) -> dict:
-    """episodes_of a finished run's policy (behind scara_gym.wrappers.Shield with ``shield``),
-    from ``cache`` where it holds them (else kept there)."""
+def learned_episodes(run_dir: Path, condition: Condition, mode: str, episodes: int | None = None,
+                     cache: Path | None = None, shield: bool = False) -> dict:
+    """A finished run's episodes in a protocol condition (scara_gym.benchmark.protocol.evaluate;
+    behind scara_gym.wrappers.Shield with ``shield``), from ``cache`` where it holds them (else
+    kept there)."""
+
+    def run() -> dict:
+        result = evaluate_condition(condition, lambda env: learned_policy(env, run_dir, shield), mode, episodes)
+        result.pop("condition")
+        return result
+
     if cache is None:
-        return episodes_of(env, learned_policy(env, run_dir, shield), episodes, seed, identical)
-    path = Path(cache) / f"{evaluation_key(run_dir, condition, mode, episodes, seed, shield)}.npz"
+        return run()
+    path = Path(cache) / f"{evaluation_key(run_dir, condition, mode, episodes, shield)}.npz"
     if path.exists():
         return _from_arrays(load_arrays(path))
-    result = episodes_of(env, learned_policy(env, run_dir, shield), episodes, seed, identical)
+    result = run()
     save_arrays(path, _to_arrays(result))  # whole or not at all: a stopped comparison leaves no half entry
     return result
 
 
 def _to_arrays(result: dict) -> dict[str, np.ndarray]:
-    """episodes_of's result as plain arrays (its traces numbered; "trace" is traces_0)."""
+    """an evaluation's result as plain arrays (its traces numbered; "trace" is traces_0)."""
     arrays = {k: v for k, v in result.items() if k not in ("trace", "traces")}
     arrays.update({f"traces_{i}": trace for i, trace in enumerate(result["traces"])})
     return arrays
@@ -162,7 +145,7 @@ COLUMNS = ("policy", "episodes", "success rate", "collision rate", "mean time to
 
 
 def summary_row(name: str, result: dict) -> dict:
-    """The plain evaluation table's row of one policy's episodes_of arrays."""
+    """The plain evaluation table's row of one policy's per-episode arrays."""
     reach = result["reach_time"][result["success"]]
     return {
         "policy": name, "episodes": len(result["success"]),
@@ -172,21 +155,31 @@ def summary_row(name: str, result: dict) -> dict:
         "energy [J]": float(np.mean(result["energy"])),
         "peak current [Imax]": float(np.max(result["peak_current_fraction"])),
         "return": float(np.mean(result["return"])),
+        "seeds": result["seeds"].tolist() if "seeds" in result else None,
         "outcomes": [{"success": bool(s), "collisions": int(c),
                       "reach_time": None if np.isnan(t) else float(t)}
                      for s, c, t in zip(result["success"], result["collision_counts"], result["reach_time"])],
     }
 
 
-def evaluate(policies: list[str], control_mode: str = "pd", randomize_target: bool = False,
-             episodes: int = 100, seed: int = 1000, record: int = 3,
-             env_id: str = ENV_ID) -> tuple[list[dict], dict]:
-    """Summary rows and recorded traces (first ``record`` episodes) per policy spec."""
+def evaluate(policies: list[str], control_mode: str = "pd", condition: str = "c11", episodes: int | None = None,
+             record: int = 3, env_id: str = ENV_ID, seed: int | None = None) -> tuple[list[dict], dict]:
+    """Summary rows and recorded traces (first ``record`` episodes) per policy spec, in a
+    condition of the protocol (scara_gym.benchmark.protocol) on ``env_id``; seed: the first
+    episode's seed instead of the condition's (its distribution on other seeds)."""
+    condition = get_condition(condition)
+    if seed is not None:
+        condition = condition.with_seed(seed)
     rows, traces = [], {}
     for spec in policies:
-        env = gym.make(env_id, control_mode=control_mode, randomize_target=randomize_target)
-        policy = make_policy(spec, env)
-        result = episodes_of(env, policy, episodes, seed, record=record)
-        traces[policy.name] = result["traces"]
-        rows.append(summary_row(policy.name, result))
+        names = []
+
+        def factory(env, spec=spec, names=names):
+            policy = make_policy(spec, env)
+            names.append(policy.name)
+            return policy
+
+        result = evaluate_condition(condition, factory, control_mode, episodes, env_id, record=record)
+        traces[names[0]] = result["traces"]
+        rows.append(summary_row(names[0], result))
     return rows, traces

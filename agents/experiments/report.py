@@ -7,11 +7,11 @@ from pathlib import Path
 
 import numpy as np
 
-from agents.experiments.conditions import CONDITIONS
 from agents.experiments.evaluation import COLUMNS
 from agents.experiments.statistics import interval_estimates, rate_text
 from agents.experiments.targets import target_checks
 from scara_gym import DEFAULT_PARAMS
+from scara_gym.benchmark.protocol import CONDITIONS
 
 
 def _pyplot():
@@ -49,7 +49,7 @@ def markdown_table(columns, rows: list[dict]) -> str:
 def tip_paths(traces: dict[str, list[np.ndarray]], path: Path, title: str, figsize=(6.5, 6),
               legend_size: int = 8) -> Path:
     """The tool tip's paths in the plane beside the wall and its critical band (traces of
-    agents.policies.episode.run_episode, a list per label; "optimal" drawn thick and black)."""
+    scara_gym.benchmark.episodes.run_episode, a list per label; "optimal" drawn thick and black)."""
     plt = _pyplot()
     obstacle = DEFAULT_PARAMS.obstacle
     fig, ax = plt.subplots(figsize=figsize)
@@ -108,20 +108,86 @@ def evaluation_report(rows: list[dict], traces: dict, out: Path, model_dirs: lis
 
 
 def comparison_markdown(entries: list[dict]) -> str:
-    """The comparison's report: the targets, the overview and one table per condition."""
+    """The comparison's report: the targets, the verdicts, the overview and one table per condition."""
     met = {True: "yes", False: "**no**", None: "-"}
     rows = [{"target": c["target"], "met": met[c["met"]], "reached": c["reached"]} for c in target_checks(entries)]
     lines = ["#### Targets", "", markdown_table(("target", "met", "reached"), rows), ""]
-    return "\n".join(lines) + "\n" + overview(entries) + "\n" + condition_tables(entries)
+    return ("\n".join(lines) + "\n" + verdicts(entries) + "\n" + overview(entries) + "\n"
+            + condition_tables(entries))
 
 
-def overview(entries: list[dict]) -> str:
-    """Every policy across the conditions: time to target (IQM), with (success rate / collision
-    rate) where not every episode succeeds without a collision; "-" where none succeeds."""
-    conditions = list(dict.fromkeys(e["condition"] for e in entries))
+CLASSICAL_KINDS = ("pd", "heuristic")
+"""the kinds a verdict counts as classical controllers (the optimal open-loop replay is a reference, not one)"""
+
+
+def _rank(e: dict) -> tuple:
+    """Best first: clean (every episode a success, none a collision), then fewer collisions, more
+    successes, less time."""
+    clean = e["success_rate"] == 1.0 and e["collision_rate"] == 0.0
+    return (not clean, e["collision_rate"], -e["success_rate"], e["time_iqm"])
+
+
+def _verdict_cell(e: dict) -> str:
+    return (f"{e['name']}: {rate_text(e['success_rate'])} / {rate_text(e['collision_rate'])}, "
+            f"{e['time_iqm']:.3f} s, {e['energy_mean']:.0f} J")
+
+
+def verdicts(entries: list[dict]) -> str:
+    """Per condition: the best classical and the best learned policy (ranked by _rank: clean
+    first, then collisions, success, time), and which wins by how much."""
+    lines = ["#### Verdicts: the best classical and the best learned policy per condition "
+             "(success / collisions, time IQM, energy)", "",
+             "| condition | best classical | best learned | verdict |", "|---|---|---|---|"]
+    for name in dict.fromkeys(e["condition"] for e in entries):
+        here = [e for e in entries if e["condition"] == name]
+        classical = sorted((e for e in here if e["kind"] in CLASSICAL_KINDS), key=_rank)
+        learned = sorted((e for e in here if e["kind"] == "learned"), key=_rank)
+        if not classical or not learned:
+            continue
+        c, ell = classical[0], learned[0]
+        winner, other = (c, ell) if _rank(c) <= _rank(ell) else (ell, c)
+        side = "classical" if winner is c else "learned"
+        if _rank(winner)[:3] == _rank(other)[:3]:
+            by = f"{other['time_iqm'] - winner['time_iqm']:.3f} s faster"
+        else:
+            by = (f"collisions {rate_text(winner['collision_rate'])} vs {rate_text(other['collision_rate'])}, "
+                  f"success {rate_text(winner['success_rate'])} vs {rate_text(other['success_rate'])}")
+        lines.append(f"| {name} | {_verdict_cell(c)} | {_verdict_cell(ell)} | {side} wins: {by} |")
+    return "\n".join(lines) + "\n"
+
+
+def curve_figure(data: dict, path: Path) -> Path:
+    """Success rate and time to target (IQM) against each curve's factor, one column per curve
+    (agents.experiments.curves' data)."""
+    plt = _pyplot()
+    curves = data["curves"]
+    fig, axes = plt.subplots(2, len(curves), figsize=(4 * len(curves), 6.5), squeeze=False)
+    for column, (curve, points) in enumerate(curves.items()):
+        for (label, row), color in zip(points["policies"].items(), plt.cm.tab10.colors):
+            axes[0, column].plot(points["factors"], row["success"], "o-", color=color, label=label)
+            axes[1, column].plot(points["factors"], row["time_iqm"], "o-", color=color, label=label)
+        axes[0, column].set(title=curve, ylabel="success rate", ylim=(-0.05, 1.05))
+        axes[1, column].set(xlabel="x nominal" if curve != "sensor noise" else "x sensor-noise's levels",
+                            ylabel="time to target, IQM [s] (3 s: not reached)")
+    axes[0, 0].legend(fontsize=7)
+    fig.suptitle(f"Robustness: {data['episodes']} episodes per point and seed, from the protocol's starts")
+    written: list[Path] = []
+    _save(fig, path, written)
+    return path
+
+
+HEADLINE_CONDITIONS = ("c11", "c11-starts", "random-targets", "random-shifts", "sensor-noise", "delay-1")
+"""the conditions of the README's headline table (overview(entries, HEADLINE_CONDITIONS))"""
+
+
+def overview(entries: list[dict], conditions: tuple[str, ...] | None = None) -> str:
+    """Every policy across the conditions (default: all of the entries'): time to target (IQM),
+    with (success rate / collision rate) where not every episode succeeds without a collision;
+    "-" where none succeeds."""
+    conditions = list(conditions or dict.fromkeys(e["condition"] for e in entries))
     lines = ["#### Overview: time to target, IQM (success rate / collision rate where not 1 / 0)", "",
              "| policy | " + " | ".join(conditions) + " |", "|---|" + "---|" * len(conditions)]
-    for name in dict.fromkeys(e["name"].split(" (d=")[0] for e in entries):
+    for name in dict.fromkeys(e["name"].split(" (d=")[0] for e in entries if e["condition"] in conditions):
         cells = []
         for condition in conditions:
             found = [e for e in entries if e["condition"] == condition and e["name"].split(" (d=")[0] == name]
@@ -140,7 +206,8 @@ def condition_tables(entries: list[dict]) -> str:
     """One table per condition (and every seed of the learned entries): the comparison's format."""
     lines = []
     for name in dict.fromkeys(e["condition"] for e in entries):
-        lines += [f"#### {name}: {CONDITIONS[name].description}", "",
+        description = CONDITIONS[name].description if name in CONDITIONS else name
+        lines += [f"#### {name}: {description}", "",
                   "| policy | kind | mode | seeds | episodes | success | collisions | time to target, IQM [95 % CI] (s) "
                   "| energy (J) | P(faster than heuristic) |", "|---|---|---|---|---|---|---|---|---|---|"]
         for e in (e for e in entries if e["condition"] == name):

@@ -25,9 +25,14 @@ def interval_estimates(scores: dict, function, reps: int, seed: int):
 
 
 def iqm_with_ci(scores: np.ndarray, reps: int = 2000, seed: int = 0) -> tuple[float, list[float]]:
-    """rliable's IQM over runs x tasks and its 95 % stratified-bootstrap interval."""
+    """rliable's IQM over runs x tasks and its 95 % stratified-bootstrap interval. One run (a
+    classical policy): its episodes are the samples the bootstrap draws (rliable's stratified
+    bootstrap resamples runs within each task, which one run cannot show any spread of)."""
     from rliable import metrics
 
+    scores = np.asarray(scores)
+    if scores.shape[0] == 1:
+        scores = scores.T
     point, interval = interval_estimates({"x": scores}, lambda s: np.array([metrics.aggregate_iqm(s)]), reps, seed)
     return float(point["x"][0]), [float(interval["x"][0, 0]), float(interval["x"][1, 0])]
 

@@ -6,7 +6,9 @@
 
 Every trial is one training run of a registered run (agents.experiments.registry) with the grid
 point's overrides (names of its YAML block, or of the torch PPO Config), then an evaluation of
-the trained policy over ``episodes`` seeds from 1000 (the comparison's) in one condition. Ray
+the trained policy over ``episodes`` episodes of one protocol condition's *tuning set*
+(scara_gym.benchmark.protocol.tuning: the condition's distribution on tuning seeds, never its
+evaluation seeds, since a sweep chooses). Ray
 Tune schedules the trials: on a local Ray runtime started for the sweep (nothing to set up; one
 CPU per trial by default) or on an existing cluster (``address``). A trial that fails is
 reported and retried up to ``max_failures`` times; its run folder (``OUT/runs/TAG/seedN``)
@@ -30,12 +32,12 @@ from pathlib import Path
 
 import numpy as np
 
-from agents.experiments.conditions import CONDITIONS, TASK_KWARGS, make_env
-from agents.experiments.evaluation import episodes_of, learned_policy
+from agents.experiments.evaluation import TASK_KWARGS, learned_policy
 from agents.experiments.registry import spec
 from agents.experiments.report import condition_tables
 from agents.experiments.runs import hyperparams_of, is_finished, publish, run_dir, train_run
 from agents.experiments.statistics import entry
+from scara_gym.benchmark.protocol import evaluate, get_condition, tuning
 
 
 def parse_grid(items: list[str]) -> dict[str, list]:
@@ -83,7 +85,7 @@ EPISODE_ARRAYS = ("success", "collisions", "reach_time", "energy")
 
 
 def task_kwargs(hyper: dict) -> dict:
-    """The task-defining environment arguments a run trains with (conditions.TASK_KWARGS)."""
+    """The task-defining environment arguments a run trains with (evaluation.TASK_KWARGS)."""
     return {k: v for k, v in hyper.get("env_kwargs", {}).items() if k in TASK_KWARGS}
 
 
@@ -97,10 +99,10 @@ def train_and_evaluate(algo: str, env_id: str, control_mode: str, seed: int, ove
     train_run(algo, out, seed, env_id, control_mode, total_timesteps, hyperparams=hyper)
     task = task_kwargs(hyper)
     result = {"train_seconds": json.loads((out / "config.json").read_text())["train_seconds"]}
+    tuning_set = tuning(condition)  # a sweep chooses: it never sees an evaluation seed
     for prefix, kwargs in (("", task), ("benchmark_", {})) if task else (("", {}),):
-        env = make_env(CONDITIONS[condition], control_mode, env_id, **kwargs)
-        runs = episodes_of(env, learned_policy(env, out), episodes, seed=1000,
-                           identical=not CONDITIONS[condition].randomize_target)
+        runs = evaluate(tuning_set, lambda env: learned_policy(env, out), control_mode, episodes, env_id,
+                        env_kwargs=kwargs)
         result.update({prefix + key: runs[key] for key in EPISODE_ARRAYS})
     return result
 
@@ -136,8 +138,7 @@ def run_sweep(algo: str, env_id: str, control_mode: str, seeds: list[int], grid:
     from ray import tune
 
     spec(algo)
-    if condition not in CONDITIONS:
-        raise ValueError(f"condition must be one of {sorted(CONDITIONS)}, got {condition!r}")
+    get_condition(condition)  # raises naming the protocol's conditions
     out = Path(out).resolve()
     points = grid_points(grid)
     for point in points:  # bad names fail here, before any trial starts

@@ -2,11 +2,13 @@
 
 from __future__ import annotations
 
-from agents.experiments.conditions import SHIFTS
 from agents.experiments.statistics import rate_text
 
 MINIMUM_TIME_BOUND = 1.2217
 """[s] the continuous-time minimum-time bound on the C11 target (the free problem's optimum)"""
+SHIELD_RANGE = ("c11", "c11-starts", "random-targets", "sensor-noise", "sensor-noise-x5", "delay-1", "rate-limit-20")
+"""the protocol conditions inside the nominal shield's range (its model has the nominal parameters); a
+robust shield's range holds every condition of the protocol"""
 TRAINING_BUDGET = 1800.0
 """[s] per training run on 2 CPU cores"""
 
@@ -48,52 +50,38 @@ def target_checks(entries: list[dict]) -> list[dict]:
               summary(e) + f" ({100 * (e['time_iqm'] / MINIMUM_TIME_BOUND - 1):+.2f} % over the bound)")
     else:
         check(text, None, "not evaluated")
-    heuristic = _find(entries, "c11", "heuristic")
-    best = _best_learned(_find(entries, "c11", "learned"), 1.0)
-    text = ("best learned on the C11 target: 100 % success and 0 collisions on every seed, IQM time <= 1.35 s, "
-            "energy <= 2x the heuristic's")
-    if best and heuristic:
-        check(text, _clean_every_seed(best) and best["time_iqm"] <= 1.35
-              and best["energy_mean"] <= 2 * heuristic[0]["energy_mean"],
-              summary(best) + f"; heuristic ({heuristic[0]['name']}) {heuristic[0]['energy_mean']:.1f} J")
+    shielded = [e for e in entries if e.get("shielded")
+                and (e["condition"] in SHIELD_RANGE or e.get("shield_range") not in (None, "nominal"))]
+    text = ("shield: 0 collisions for every policy behind it in every protocol condition inside its range "
+            f"(the nominal shield: {', '.join(SHIELD_RANGE)}; the robust shield: every condition)")
+    if shielded:
+        hits = [e for e in shielded if e["collision_rate"] > 0]
+        check(text, not hits, "; ".join(f"{e['name']} in {e['condition']}: collisions {rate_text(e['collision_rate'])}"
+                                        for e in hits) or f"{len(shielded)} entries, none collides")
     else:
         check(text, None, "not evaluated")
-    heuristic_random = _find(entries, "random-targets", "heuristic")
-    best = _best_learned(_find(entries, "random-targets", "learned"), 0.99)
-    text = "randomized targets: >= 99 % success, 0 collisions, IQM time below the heuristic's"
-    if best and heuristic_random:
-        check(text, best["success_rate"] >= 0.99 and best["collision_rate"] == 0.0
-              and best["time_iqm"] < heuristic_random[0]["time_iqm"],
-              summary(best) + f"; heuristic {heuristic_random[0]['time_iqm']:.4f} s")
+    for condition, success, label in (("c11-starts", 0.99, "the C11 target from perturbed starts"),
+                                      ("random-targets", 0.99, "randomized targets")):
+        heuristic = [e for e in _find(entries, condition, "heuristic") if e["name"].startswith("dec-continue, tuned")]
+        learned = [e for e in _find(entries, condition, "learned") if not e.get("shielded")]
+        best = _best_learned(learned, success)
+        text = (f"best learned without a shield, {label}: >= {100 * success:.0f} % success, 0 collisions, IQM time "
+                "below the tuned heuristic's, energy <= 2x the heuristic's")
+        if best and heuristic:
+            h = heuristic[0]
+            check(text, best["success_rate"] >= success and best["collision_rate"] == 0.0
+                  and best["time_iqm"] < h["time_iqm"] and best["energy_mean"] <= 2 * h["energy_mean"],
+                  summary(best) + f"; heuristic ({h['name']}) {h['time_iqm']:.4f} s, {h['energy_mean']:.1f} J")
+        else:
+            check(text, None, "not evaluated")
+    learned = [e for e in _find(entries, "sensor-noise", "learned") if not e.get("shielded")]
+    best = _best_learned(learned, 0.95)
+    text = "best learned without a shield under small sensor noise: >= 95 % success, 0 collisions"
+    if best:
+        check(text, best["success_rate"] >= 0.95 and best["collision_rate"] == 0.0, summary(best))
     else:
         check(text, None, "not evaluated")
-    robust = {}  # domain-randomized algorithm -> its entries in the four shifts
-    for e in entries:
-        if e["kind"] == "learned" and e["condition"] in SHIFTS and "domain-randomized" in e.get("tags", ()):
-            robust.setdefault(e["algorithm"], []).append(e)
-    robust = {a: rows for a, rows in robust.items() if len(rows) == len(SHIFTS)}
-    text = "domain-randomized agent under the four shifts: >= 95 % success, 0 collisions in each"
-
-    def robust_enough(rows):
-        return all(e["success_rate"] >= 0.95 and e["collision_rate"] == 0.0 for e in rows)
-
-    if robust:
-        best = max(robust, key=lambda a: (robust_enough(robust[a]),
-                                          min(e["success_rate"] - e["collision_rate"] for e in robust[a])))
-        check(text, robust_enough(robust[best]), f"{best}: " + "; ".join(
-            f"{e['condition']} {rate_text(e['success_rate'])} / {rate_text(e['collision_rate'])}" for e in robust[best]))
-    else:
-        check(text, None, "no domain-randomized agent (registry tag) evaluated in all four shifts")
-    text = "fast and frugal: a learned algorithm faster (IQM) than the heuristic on the C11 target with at most its energy"
     learned = _find(entries, "c11", "learned")
-    if learned and heuristic:
-        h = heuristic[0]
-        frugal = [e for e in learned if e["time_iqm"] < h["time_iqm"] and e["energy_mean"] <= h["energy_mean"]]
-        closest = min(learned, key=lambda e: e["energy_mean"] / h["energy_mean"] + e["time_iqm"] / h["time_iqm"])
-        check(text, bool(frugal), summary(frugal[0] if frugal else closest)
-              + f"; heuristic {h['time_iqm']:.4f} s, {h['energy_mean']:.1f} J")
-    else:
-        check(text, None, "not evaluated")
     # keyed by the runs' folder: a run also evaluated behind the shield is listed once
     seconds = {e["run"]: [s.get("train_seconds") for s in e["per_seed"]] for e in learned}
     text = f"each training run <= {TRAINING_BUDGET / 60:.0f} min on 2 CPU cores"

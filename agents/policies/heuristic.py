@@ -30,7 +30,7 @@ import gymnasium as gym
 import numpy as np
 
 from agents.policies.base import SetpointPolicy
-from agents.policies.episode import run_episode
+from scara_gym.benchmark.episodes import run_episode
 from scara_gym.envs import OBSERVATION_LAYOUT
 from scara_gym.registration import ENV_ID
 from scara_gym.wrappers.shield import hold_and_climb
@@ -81,16 +81,26 @@ class DecHeuristic(SetpointPolicy):
 
 
 def smallest_safe_distance(variant: str = "continue", env_kwargs: dict | None = None,
-                           low: float = 0.0, high: float = 0.4, tolerance: float = 1e-3, env=None, seed: int = 0):
+                           low: float = 0.0, high: float = 0.4, tolerance: float = 1e-3, env=None, seed: int = 0,
+                           episodes: list[tuple] | None = None):
     """Bisection for the smallest trigger distance at which the heuristic clears the wall
     and reaches the target in the episode of `seed` (of `env`, by default Scara-C11-v0 with
-    `env_kwargs`); returns (distance, episode summary there)."""
-    if env is None:
-        env = gym.make(ENV_ID, **(env_kwargs or {}))
+    `env_kwargs`), or in every episode of ``episodes`` ((env, seed, reset options) triples);
+    returns (distance, the first episode's summary there)."""
+    if episodes is None:
+        if env is None:
+            env = gym.make(ENV_ID, **(env_kwargs or {}))
+        episodes = [(env, seed, None)]
 
     def safe(distance: float):
-        result = run_episode(env, DecHeuristic(env, variant, critical_distance=distance), seed=seed)
-        return result["collisions"] == 0 and result["success"], result
+        results = []
+        for env_, seed_, options in episodes:
+            result = run_episode(env_, DecHeuristic(env_, variant, critical_distance=distance), seed=seed_,
+                                 options=options)
+            results.append(result)
+            if result["collisions"] or not result["success"]:
+                return False, results[0]
+        return True, results[0]
 
     ok, result = safe(high)
     if not ok:

@@ -91,7 +91,8 @@ class ScaraCudaVectorEnv(VectorEnv):
     from all its seeds; no seed: fresh entropy): the same distribution as on the CPU (zero-mean
     Gaussian per entry, then clipped to the observation space), not the same draws, since the
     CPU env draws robot i's noise from robot i's episode generator, which here draws the plans
-    ahead. Rendering is not supported.
+    ahead. ``sensor_noise`` (derived entries from noisy measurements) is not implemented here and
+    is refused with a ValueError. Rendering is not supported.
     """
 
     metadata = {"autoreset_mode": AutoresetMode.NEXT_STEP, "render_modes": []}
@@ -121,7 +122,7 @@ class ScaraCudaVectorEnv(VectorEnv):
         self.action_space = batch_space(self.single_action_space, n)
         self.observation_space = batch_space(self.single_observation_space, n)
         self._rngs: list[np.random.Generator | None] = [None] * n
-        self.fixed_plans = not (task.randomize_target or task.randomization)
+        self.fixed_plans = not (task.randomize_target or task.randomization or task.start_region is not None)
         depth = 1 if self.fixed_plans else self.plan_depth
 
         # device records: the task's constants, then every robot's state and results
@@ -160,6 +161,9 @@ class ScaraCudaVectorEnv(VectorEnv):
         self.actuator = TorchActuator(torch, options, n, self.device) if options.shapes_actions else None
         # the neutral action of an episode that starts at the default start (every autoreset one)
         self._neutral = self._neutral_actions(np.tile(task.default_start, (n, 1)))
+        if options.sensor_noisy:
+            raise ValueError("sensor_noise is not implemented on the CUDA vector env (its derived entries would "
+                             "need the kinematics on the device); use the CPU vector env or observation_noise")
         self._noise_std = torch.from_numpy(options.noise_std).to(self.device) if options.noisy else None
         self._obs_low = torch.from_numpy(task.obs_low.astype(np.float64)).to(self.device)
         self._obs_high = torch.from_numpy(task.obs_high.astype(np.float64)).to(self.device)

@@ -239,12 +239,15 @@ class ScaraGoalEnv(_GoalAPI, ScaraEnv):
     - action_delay (0): sim-to-real dead time in control steps, as ScaraEnv.
     - action_rate_limit (None): sim-to-real slew limit [action units / s], as ScaraEnv.
     - render_mode (None): "rgb_array" or "human".
+    - sensor_noise (None): noisy sensors (derived entries from the noisy measurements), as ScaraEnv.
+    - randomize_start (False): starts drawn per episode, as ScaraEnv.
 
     ## Version history
 
     - v0: first release: the goal API on Scara-C11-v1's physics (``exact_switches=True``,
       ``rtol=1e-6``, ``atol=1e-8``) with goals drawn per episode (``randomize_target=True``).
-      Later added, without a change to what existing arguments do: ``reward_type="mixed"``.
+      Later added, without a change to what existing arguments do: ``reward_type="mixed"``,
+      ``sensor_noise``, ``randomize_start``.
     """
 
     env_id = "Scara-C11-Goal-v0"
@@ -255,13 +258,15 @@ class ScaraGoalEnv(_GoalAPI, ScaraEnv):
                  randomize_target: bool = True, control_dt: float = 0.01, time_limit: float = 3.0,
                  params=None, rtol: float = 1e-6, atol: float = 1e-8, exact_switches: bool = True,
                  randomize_params=False, observation_noise: dict | None = None, action_delay: int = 0,
-                 action_rate_limit: float | None = None, render_mode: str | None = None) -> None:
+                 action_rate_limit: float | None = None, render_mode: str | None = None,
+                 sensor_noise: dict | None = None, randomize_start=False) -> None:
         super().__init__(control_mode=control_mode, obstacle=obstacle, collision=collision, target=target,
                          start=start, randomize_target=randomize_target, control_dt=control_dt,
                          time_limit=time_limit, params=params, rtol=rtol, atol=atol,
                          exact_switches=exact_switches, randomize_params=randomize_params,
                          observation_noise=observation_noise, action_delay=action_delay,
-                         action_rate_limit=action_rate_limit, render_mode=render_mode)
+                         action_rate_limit=action_rate_limit, render_mode=render_mode,
+                         sensor_noise=sensor_noise, randomize_start=randomize_start)
         self.rules = GoalRules(reward_type, collision_penalty, self.params.task.accuracy, self.collision_mode,
                                goal_tolerance)
         self.observation_space = _goal_spaces(self.task)

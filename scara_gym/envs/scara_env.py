@@ -166,7 +166,8 @@ class ScaraEnv(gym.Env):
       ("q", "rate", "current", "target_error", "tip_x", ...: a vector field's std applies
       to each entry) or entries by the table's names ("q3"). Zero-mean Gaussian noise per
       step from the episode's generator, added to the returned observation only (the
-      physics, reward and episode end see the true state).
+      physics, reward and episode end see the true state). Each entry gets its own noise:
+      noise on q does not reach target_error or the tip; for that, use sensor_noise.
     - action_delay (0): sim-to-real: dead time in control steps, in [0, 100]: the action
       given at step t is applied at step t + k; the first k steps apply the neutral
       action (the start as set-point in "pd" mode, 0 V in "voltage" mode).
@@ -174,6 +175,16 @@ class ScaraEnv(gym.Env):
       (delayed) given one by at most this many action units per second (the action spans
       [-1, 1]; e.g. 20 allows 0.2 per 0.01 s step), starting from the neutral action.
     - render_mode (None): "rgb_array" (headless) or "human" (needs a display).
+    - sensor_noise (None): sim-to-real: noisy sensors, {channel: standard deviation} over
+      "q", "rate" and "current" (or entries "q1" ... "current3"), e.g. {"q": 1e-3, "rate":
+      0.01, "current": 0.02}: the noise is added to the measured q, rates and currents and
+      target_error, tip_x, tip_y, wall_distance and height_margin are computed from the noisy
+      measurements (as a controller computes them from its sensors); drawn before any
+      observation_noise, from the episode's generator. Not on the CUDA vector env.
+    - randomize_start (False): True draws the start per episode as ``start`` + uniform
+      offsets in q1, q2 in [-0.05, 0.05] rad, q3 in [0, 0.05] m (the evaluation protocol's
+      start region), after the parameters and before the target; (low, high) gives offsets
+      of its own [rad, rad, m]. ``reset(options={"start": ...})`` overrides it.
 
     ## Version history
 
@@ -190,6 +201,10 @@ class ScaraEnv(gym.Env):
       the accuracy targets of ``scara-c11 accuracy`` (see the README for the figures and
       the one exception, the voltage jump at the critical switch in "voltage" mode).
     - v0: first release (``rtol=1e-5``, ``atol=1e-6``, ``exact_switches=False``).
+
+    Later added to every id, without a change to what existing arguments do: ``sensor_noise``
+    (noisy sensors with the derived entries computed from them; ``observation_noise`` keeps its
+    per-entry meaning) and ``randomize_start`` (starts drawn per episode).
     """
 
     metadata = {"render_modes": ["human", "rgb_array"], "render_fps": 100}
@@ -201,12 +216,14 @@ class ScaraEnv(gym.Env):
                  time_limit: float = 3.0, params: ScaraParams | dict | None = None,
                  rtol: float = 1e-5, atol: float = 1e-6, exact_switches: bool = False,
                  randomize_params=False, observation_noise: dict | None = None, action_delay: int = 0,
-                 action_rate_limit: float | None = None, render_mode: str | None = None) -> None:
+                 action_rate_limit: float | None = None, render_mode: str | None = None,
+                 sensor_noise: dict | None = None, randomize_start=False) -> None:
         self.task = ScaraTask(control_mode, obstacle, collision, target, start, randomize_target,
                               reward_weights, control_dt, time_limit, params, rtol, atol,
                               exact_switches, num_robots=1, randomize_params=randomize_params,
                               observation_noise=observation_noise, action_delay=action_delay,
-                              action_rate_limit=action_rate_limit)
+                              action_rate_limit=action_rate_limit, sensor_noise=sensor_noise,
+                              randomize_start=randomize_start)
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
             raise ValueError(f"render_mode must be one of {self.metadata['render_modes']} or None, "
                              f"got {render_mode!r}")

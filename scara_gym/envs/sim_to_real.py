@@ -1,6 +1,15 @@
-"""Sim-to-real options: observation noise, actuation delay and an action rate limit.
+"""Sim-to-real options: sensor noise, observation noise, actuation delay and an action rate limit.
 
-All three are off by default and apply to any environment id (single and vector):
+All four are off by default and apply to any environment id (single and CPU vector):
+
+- ``sensor_noise``: ``{channel: standard deviation}`` over the measured channels ``"q"``
+  [rad, rad, m], ``"rate"`` [rad/s, rad/s, m/s] and ``"current"`` [A] (a channel's std applies
+  to its three axes) or single ones by the card's names (``"q1"``, ``"current3"``). The noise
+  is drawn per step and added to the measurements, and every entry derived from them is
+  computed from the noisy measurements, as a controller on a real robot computes them:
+  ``target_error`` = q^ - q_measured, ``tip_x``, ``tip_y`` by the forward kinematics of the
+  measured angles, ``wall_distance`` from the measured tip and ``height_margin`` from the
+  measured q3. ``critical`` (the drive's own mode) and ``time_left`` are not measurements.
 
 - ``observation_noise``: ``{field: standard deviation}`` in the field's unit, over the
   fields of the observation (``"q"``, ``"rate"``, ``"current"``, ``"target_error"``,
@@ -16,7 +25,7 @@ All three are off by default and apply to any environment id (single and vector)
   applied action moves towards the (delayed) action by at most r * control_dt per step,
   starting from the neutral action. A slew-rate limit of the actuator.
 
-Actions beyond [-1, 1] are clipped (and counted in ``clipped_actions``) before the delay
+Sensor noise is drawn first, then observation noise (both may be given). Actions beyond [-1, 1] are clipped (and counted in ``clipped_actions``) before the delay
 and the rate limit. With a delay or a rate limit the action applied in a step is in
 ``info["applied_action"]``.
 
@@ -25,15 +34,20 @@ No gymnasium import here: the task object (:mod:`scara_gym.envs.task`) uses it.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping
 from dataclasses import dataclass
 
 import numpy as np
 
+from scara_gym.envs.core import O_HEIGHT, O_TARGET_ERROR, O_TIP_X, O_TIP_Y, O_WALL
 from scara_gym.model import checks
 
 MAX_ACTION_DELAY = 100   # [control steps]
 NOISE_STD_MAX = 1e3      # [the field's unit]; beyond, every noisy value sits on a bound
+SENSOR_CHANNELS = ("q", "rate", "current")
+"""the measured channels of ``sensor_noise``, in the observation's first nine entries"""
+N_SENSED = 9
 
 
 @dataclass(frozen=True)
@@ -48,34 +62,47 @@ class SimToReal:
     """largest change of the applied action per second [action units / s]; None: none"""
     control_dt: float = 0.01
     """the control step [s] (the rate limit's time scale)"""
+    sensor_std: np.ndarray = None
+    """per measured channel (q1..q3, rates, currents), the sensor noise's standard deviation"""
 
     @classmethod
     def from_arguments(cls, observation_noise, action_delay, action_rate_limit, control_dt: float,
-                       layout: Mapping, names: tuple[str, ...]) -> SimToReal:
-        """Check the three environment arguments; layout: field -> slice or index of the flat
+                       layout: Mapping, names: tuple[str, ...], sensor_noise=None) -> SimToReal:
+        """Check the four environment arguments; layout: field -> slice or index of the flat
         observation; names: one name per entry."""
-        std = np.zeros(len(names))
-        if observation_noise is not None:
-            allowed = sorted(set(layout) | set(names), key=lambda n: (n not in layout, n))
-            entries = checks.mapping("observation_noise", observation_noise, allowed)
-            for field, value in entries.items():
-                value = checks.real(f"observation_noise[{field!r}]", value, 0.0, NOISE_STD_MAX,
-                                    unit="the field's unit")
-                std[layout[field] if field in layout else names.index(field)] = value
+        std = _stds("observation_noise", observation_noise, layout, names)
+        sensed = {field: layout[field] for field in SENSOR_CHANNELS}
+        sensor = _stds("sensor_noise", sensor_noise, sensed, names[:N_SENSED])
         delay = checks.integer("action_delay", action_delay, 0, MAX_ACTION_DELAY)
         if action_rate_limit is not None:
             action_rate_limit = checks.real("action_rate_limit", action_rate_limit, 1e-6, 1e9,
                                             unit="action units per second")
-        return cls(std, delay, action_rate_limit, control_dt)
+        return cls(std, delay, action_rate_limit, control_dt, sensor)
 
     @property
     def noisy(self) -> bool:
-        return bool(np.any(self.noise_std > 0.0))
+        return bool(np.any(self.noise_std > 0.0)) or self.sensor_noisy
+
+    @property
+    def sensor_noisy(self) -> bool:
+        return self.sensor_std is not None and bool(np.any(self.sensor_std > 0.0))
 
     @property
     def shapes_actions(self) -> bool:
         """True where the applied action can differ from the given one (clipping aside)."""
         return self.action_delay > 0 or self.action_rate_limit is not None
+
+
+def _stds(argument: str, value, layout: Mapping, names: tuple[str, ...]) -> np.ndarray:
+    """One standard deviation per entry of ``names`` from a {field or entry name: std} argument."""
+    std = np.zeros(len(names))
+    if value is None:
+        return std
+    allowed = sorted(set(layout) | set(names), key=lambda n: (n not in layout, n))
+    for field, v in checks.mapping(argument, value, allowed).items():
+        v = checks.real(f"{argument}[{field!r}]", v, 0.0, NOISE_STD_MAX, unit="the field's unit")
+        std[layout[field] if field in layout else names.index(field)] = v
+    return std
 
 
 class Actuator:
@@ -108,6 +135,27 @@ class Actuator:
             out = previous + np.clip(out - previous, -self.max_change, self.max_change)
         self.applied[rows] = out
         return out
+
+
+def sense(obs: np.ndarray, std: np.ndarray, rng: np.random.Generator, p, obstacle: bool, low: np.ndarray,
+          high: np.ndarray) -> np.ndarray:
+    """One observation (float32) as noisy sensors give it: Gaussian noise of ``std`` on the nine
+    measured entries (drawn only where std > 0, from ``rng``) and the derived entries computed
+    from the noisy measurements with the robot's geometry and wall (``p``: its PARAMS record),
+    clipped to [low, high] (float64 out)."""
+    out = obs.astype(np.float64)
+    noisy = std > 0.0
+    noise = np.zeros(N_SENSED)
+    noise[noisy] = rng.standard_normal(int(noisy.sum())) * std[noisy]
+    out[:N_SENSED] += noise
+    out[O_TARGET_ERROR:O_TARGET_ERROR + 3] -= noise[:3]
+    q1, q2, q3 = out[0], out[1], out[2]
+    tip_x = p["link1_length"] * math.cos(q1) + p["link2_length"] * math.cos(q1 + q2)
+    tip_y = p["link1_length"] * math.sin(q1) + p["link2_length"] * math.sin(q1 + q2)
+    out[O_TIP_X], out[O_TIP_Y] = tip_x, tip_y
+    if obstacle:
+        out[O_WALL], out[O_HEIGHT] = tip_x - p["wall_x"], q3 - p["wall_height"]
+    return np.clip(out, low, high)
 
 
 def add_noise(obs: np.ndarray, std: np.ndarray, rng: np.random.Generator, low: np.ndarray,

@@ -38,7 +38,7 @@ from scara_gym.envs.core import (
     step_robots_serial,
 )
 from scara_gym.envs.randomization import ParameterRanges, check_overrides, within_bounds
-from scara_gym.envs.sim_to_real import Actuator, SimToReal, add_noise
+from scara_gym.envs.sim_to_real import Actuator, SimToReal, add_noise, sense
 from scara_gym.model import checks, records as R
 from scara_gym.model.dynamics import tip_position
 from scara_gym.model.params import DEFAULT_PARAMS, ScaraParams, resolve_params
@@ -64,6 +64,9 @@ JOINT_RANGE_TEXT = "q1, q2 in [-pi, pi] rad and q3 in [0, 0.4] m"
 TARGET_LOW = np.array([1.5, 1.5, 0.2])
 TARGET_HIGH = np.array([2.5, 2.5, 0.35])
 TARGET_CLEARANCE = 0.02  # [m] a drawn target tip keeps this much beyond the critical band
+START_REGION = (np.array([-0.05, -0.05, 0.0]), np.array([0.05, 0.05, 0.05]))
+"""randomize_start=True draws the start as start + uniform offsets in this box [rad, rad, m]"""
+MAX_START_OFFSET = 1.0  # [rad, rad, m] a start region's half-width at most
 ANGLE_BOUND = 6 * math.pi   # [rad] observation bound of q1, q2 (clipped beyond)
 HEIGHT_BOUND = 1.0          # [m]
 ANGLE_RATE_BOUND = 20.0     # [rad/s]
@@ -164,6 +167,25 @@ class EpisodePlan(NamedTuple):
 RESET_OPTIONS = ("target", "start", "params")
 
 
+def _start_region(value) -> tuple[np.ndarray, np.ndarray] | None:
+    """randomize_start: False/None (off), True (START_REGION) or (low, high) offsets [rad, rad, m]."""
+    if value is None or value is False:
+        return None
+    if value is True:
+        return START_REGION
+    text = ("randomize_start must be False, True or (low, high): two 3-vectors of offsets [rad, rad, m] "
+            f"from the start with low <= high, each within +-{MAX_START_OFFSET}")
+    try:
+        low = checks.real_array("randomize_start[0]", value[0], (3,), unit="rad, rad, m")
+        high = checks.real_array("randomize_start[1]", value[1], (3,), unit="rad, rad, m")
+    except (TypeError, ValueError, IndexError, KeyError):
+        raise ValueError(f"{text}, got {value!r}") from None
+    if len(value) != 2 or np.any(low > high) or np.any(np.abs(low) > MAX_START_OFFSET) \
+            or np.any(np.abs(high) > MAX_START_OFFSET):
+        raise ValueError(f"{text}, got {value!r}")
+    return low, high
+
+
 def _reward_weights(reward_weights) -> RewardWeights:
     if reward_weights is None:
         return RewardWeights()
@@ -188,7 +210,10 @@ class ScaraTask:
                  time_limit: float = 3.0, params: ScaraParams | dict | None = None,
                  rtol: float = 1e-5, atol: float = 1e-6, exact_switches: bool = False,
                  num_robots: int = 1, randomize_params=False, observation_noise: dict | None = None,
-                 action_delay: int = 0, action_rate_limit: float | None = None) -> None:
+                 action_delay: int = 0, action_rate_limit: float | None = None, sensor_noise: dict | None = None,
+                 randomize_start=False) -> None:
+        self.arguments = {name: value for name, value in locals().items() if name not in ("self", "__class__")}
+        """the constructor's arguments as given: a model of this task (the shield's) is built from them"""
         self.control_mode = checks.choice("control_mode", control_mode, CONTROL_MODES)
         self.obstacle = checks.flag("obstacle", obstacle)
         self.collision_mode = checks.choice("collision", collision, COLLISION_MODES)
@@ -213,12 +238,15 @@ class ScaraTask:
         num_robots = checks.integer("num_robots", num_robots, 1, MAX_ROBOTS)
         self.default_target = self.check_joints(target if target is not None else self.params.task.target, "target")
         self.default_start = self.check_joints(start if start is not None else self.params.task.start, "start")
+        self.start_region = _start_region(randomize_start)
+        """(low, high) offsets from the start drawn per episode, or None (the start fixed)"""
         self.setpoint_center = SETPOINT_CENTER
         self.setpoint_half = SETPOINT_HALF
         self.obs_low, self.obs_high = self._observation_bounds()
         self.num_robots = n = num_robots
         self.sim_to_real = SimToReal.from_arguments(observation_noise, action_delay, action_rate_limit,
-                                                    self.control_dt, OBSERVATION_LAYOUT, OBSERVATION_NAMES)
+                                                    self.control_dt, OBSERVATION_LAYOUT, OBSERVATION_NAMES,
+                                                    sensor_noise)
         self.actuator = Actuator(self.sim_to_real, n) if self.sim_to_real.shapes_actions else None
         """the delay line and rate limit between the agent's and the applied actions, where any"""
 
@@ -339,7 +367,12 @@ class ScaraTask:
             if problem:
                 raise ValueError(f"options['params']: {problem}, built from the construction arguments "
                                  f"params and randomize_params; widen them there")
-        start = self.check_joints(options["start"], "options['start']") if "start" in options else self.default_start
+        if "start" in options:
+            start = self.check_joints(options["start"], "options['start']")
+        elif self.start_region is not None:
+            start = np.clip(self.default_start + rng.uniform(*self.start_region), JOINT_LOW, JOINT_HIGH)
+        else:
+            start = self.default_start
         if "target" in options:
             target = self.check_joints(options["target"], "options['target']")
         elif self.randomize_target:
@@ -380,19 +413,29 @@ class ScaraTask:
 
     def snapshot(self, i: int) -> dict:
         """Robot i's state as ``restore`` takes it (copies): state vector, current holds, time,
-        the integrator's next step size, steps taken, and the target and parameters it holds for."""
+        the integrator's next step size, steps taken, the target and parameters it holds for, and
+        with an action_delay or a rate limit the actuator line's state ("pending", "applied")."""
         robot = self.robots[i]
-        return {"x": robot["x"].copy(), "hold": robot["hold"].copy(), "t": float(robot["t"]),
-                "step_size": float(robot["step_size"]),
-                "episode_steps": int(self.outcomes[i]["episode_steps"]),
-                "target": self.robot_params[i]["target"].copy(), "params": self.episode_params[i]}
+        snapshot = {"x": robot["x"].copy(), "hold": robot["hold"].copy(), "t": float(robot["t"]),
+                    "step_size": float(robot["step_size"]),
+                    "episode_steps": int(self.outcomes[i]["episode_steps"]),
+                    "target": self.robot_params[i]["target"].copy(), "params": self.episode_params[i]}
+        if self.actuator is not None:
+            snapshot["pending"] = self.actuator.pending[i].copy()
+            snapshot["applied"] = self.actuator.applied[i].copy()
+        return snapshot
 
     def restore(self, i: int, snapshot: dict) -> None:
         """Robot i, in an episode with the snapshot's target and parameters, put in the
         snapshot's state: the episode goes on from there (its step's reward terms zero). For
-        starts along a recorded trajectory, as in reference state initialization."""
+        starts along a recorded trajectory, as in reference state initialization. With an
+        action_delay or a rate limit the snapshot must hold the actuator line's state of the same
+        delay (a snapshot of a task with the same sim-to-real options)."""
         if self.actuator is not None:
-            raise ValueError("restore: the action_delay / action_rate_limit line has a state a snapshot lacks")
+            pending, applied = snapshot.get("pending"), snapshot.get("applied")
+            if pending is None or applied is None or np.shape(pending) != self.actuator.pending[i].shape:
+                raise ValueError(f"restore: this task's action line (action_delay {self.sim_to_real.action_delay}) "
+                                 f"needs a snapshot with its state ('pending', 'applied') of the same delay")
         if snapshot["params"] != self.episode_params[i] or not np.array_equal(snapshot["target"],
                                                                               self.robot_params[i]["target"]):
             raise ValueError(f"restore: robot {i}'s episode has another target or other parameters than the "
@@ -401,6 +444,9 @@ class ScaraTask:
                       float(snapshot["t"]), float(snapshot["step_size"]), int(snapshot["episode_steps"]),
                       self.robots, self.robot_params,
                       self.config, self.task, self.outcomes, self.obs)
+        if self.actuator is not None:
+            self.actuator.pending[i] = pending
+            self.actuator.applied[i] = applied
 
     # -- steps ---------------------------------------------------------------------------
     def step_robot(self, i: int, action: np.ndarray) -> None:
@@ -447,11 +493,18 @@ class ScaraTask:
         raise SimulationError(where + failure_message(status, self.robots[i], self.config[0], self.params))
 
     def observation(self, i: int, rng: np.random.Generator) -> np.ndarray:
-        """Robot i's observation as the agent gets it (a copy): with observation noise drawn
-        from ``rng`` (the episode's generator) where configured."""
-        if not self.sim_to_real.noisy:
+        """Robot i's observation as the agent gets it (a copy): with sensor noise, then
+        observation noise, drawn from ``rng`` (the episode's generator) where configured."""
+        options = self.sim_to_real
+        if not options.noisy:
             return self.obs[i].copy()
-        return add_noise(self.obs[i], self.sim_to_real.noise_std, rng, self.obs_low, self.obs_high)
+        obs = self.obs[i]
+        if options.sensor_noisy:
+            obs = sense(obs, options.sensor_std, rng, self.robot_params[i], self.obstacle, self.obs_low,
+                        self.obs_high).astype(np.float32)
+        if not np.any(options.noise_std > 0.0):
+            return obs
+        return add_noise(obs, options.noise_std, rng, self.obs_low, self.obs_high)
 
     def observations(self, rngs: list[np.random.Generator]) -> np.ndarray:
         """Every robot's observation as the agents get it (robot i's noise from rngs[i])."""

@@ -1,35 +1,55 @@
-"""A model-predictive safety shield for any policy of the single environment.
+"""A predictive safety shield with a committed backup, for any policy of the environment.
 
 A shield (Alshiekh et al. 2018) stands between a policy and the robot and replaces an action
-only where it would lead to a collision. This one decides by prediction, as a predictive
-safety filter does (Wabersich and Zeilinger 2021): before each step it copies the robot's
-state into a model of the robot (the same compiled simulator, with the parameters the
-shield was given), applies the policy's action there and then the backup policy until the
-arm has come to rest. Where that rollout touches the wall, or the arm is still moving after
-``horizon`` steps, the robot gets the backup's action instead of the policy's.
+only where it could lead to a collision. This one is a predictive safety filter (Wabersich and
+Zeilinger 2021) with a *committed* backup:
 
-The backup is the ``dec`` heuristic's move without its trigger: hold axes 1 and 2 where they
-are (the PD law brakes them, with the widened voltage near the wall) and drive axis 3 to its
-target, at least ``climb_margin`` above the wall. It is a state feedback, so the rollout the
-shield checked is the path the robot takes if the backup keeps acting; with an exact model
-(the shield's parameters those of the episode) a policy behind the shield therefore never
-collides from a state where the backup is safe, as at rest. With other parameters (the
-nominal ones under a shifted robot: ``params``) the prediction is only as good as the model.
+- The backup is the ``dec`` heuristic's braking move with a **fixed** set-point: hold axes 1
+  and 2 at the joint angles the robot had before the step that was checked (the PD law brakes
+  them, with the widened voltage near the wall) and drive axis 3 to its target, at least
+  ``climb_margin`` above the highest wall of the models. The set-point is captured once and
+  kept while the backup acts, so the backup is one fixed feedback law whose closed loop has
+  an equilibrium, not a "hold where you are" that follows the arm as it drifts.
+- Before each step the shield copies the robot's full state (``ScaraTask.snapshot``: the state
+  vector, the current holds, the integrator's step size and the actuator line's delay and slew
+  state) into its models, applies the policy's action there and then the backup, until every
+  model has reached the **terminal set**: axes 1 and 2 within ``hold_tolerance`` of the held
+  angles and every joint rate below ``rest_rate`` (the closed loop at rest at its set-point),
+  with the tip at least ``wall_margin`` from the wall's plane or that much above the wall. A
+  model that touches the wall, or has not come to rest within ``horizon`` steps, rejects the
+  action.
+- An accepted action's backup is committed: if the next action is rejected, the robot gets
+  that backup, whose whole rollout to the terminal set was checked one step earlier. With an
+  exact model the robot therefore never touches the wall: every state it reaches lies on a
+  rollout that was certified to come to rest clear of it.
 
-The shield reads the robot's full state from the environment (``ScaraTask.snapshot``),
-not from the observation, and costs up to ``1 + horizon`` model steps per control step.
+Models: the nominal parameters (``params``; None: the environment's own) and, with ``robust``
+(a :class:`~scara_gym.envs.randomization.ParameterRanges` argument around them: a preset name,
+a dict path -> (low, high) or a ParameterRanges), the ranges' ends (:func:`range_ends`: every
+corner for up to three parameters, else each parameter at either end) and ``robust_samples``
+parameter sets drawn once from the ranges. An action passes only if the backup is safe in
+every model: a certificate for the sampled models, not a proof for the whole range, which the
+property tests probe. The models share the environment's actuator line (``action_delay``,
+``action_rate_limit``), control mode, tolerances and control step.
+
+The shield reads the robot's true state from the environment, not from the (possibly noisy)
+observation, and costs up to ``1 + horizon`` model steps per model and control step (a rollout
+stops where every model is at rest).
 """
 
 from __future__ import annotations
 
-import gymnasium as gym
 import numpy as np
 
-from scara_gym.envs.task import OBSERVATION_LAYOUT
-from scara_gym.model.params import DEFAULT_PARAMS, ScaraParams
-from scara_gym.registration import TRAINING_ENV_ID
+from scara_gym.envs.randomization import ParameterRanges
+from scara_gym.envs.task import OBSERVATION_LAYOUT, EpisodePlan, ScaraTask
+from scara_gym.model import checks
+from scara_gym.model.params import DEFAULT_PARAMS, ScaraParams, resolve_params
 
 Q, RATES, TARGET_ERROR = (OBSERVATION_LAYOUT[name] for name in ("q", "rate", "target_error"))
+WALL_DISTANCE, HEIGHT_MARGIN = OBSERVATION_LAYOUT["wall_distance"], OBSERVATION_LAYOUT["height_margin"]
+MAX_HORIZON = 1000      # [control steps]
+MAX_ROBUST_SAMPLES = 256
 
 
 def hold_and_climb(held: np.ndarray, target: np.ndarray, lowest_height: float = -np.inf) -> np.ndarray:
@@ -39,73 +59,137 @@ def hold_and_climb(held: np.ndarray, target: np.ndarray, lowest_height: float = 
     return np.array([held[0], held[1], max(target[2], lowest_height)])
 
 
-class Shield:
-    """``policy``'s action where the model predicts that the backup can still stop the arm
-    without a collision after it, else the backup's (module docstring). ``interventions``
-    counts the steps of the current episode where the backup acted. ``env`` gives the model's
-    environment arguments and, for ``__call__``, the robot; ``filter`` shields any task's robot
-    (a vector environment's in training, shielded RL), with ``policy`` None."""
+MAX_CORNER_PATHS = 3
 
-    def __init__(self, env, policy, params: ScaraParams | None = DEFAULT_PARAMS, horizon: int = 100,
-                 rest_rate: float = 0.02, climb_margin: float = 0.01) -> None:
+
+def range_ends(ranges: ParameterRanges) -> list[dict]:
+    """The robust shield's fixed models: every corner of the ranges (each path at either end)
+    for up to MAX_CORNER_PATHS paths, else each path at either end with the others nominal."""
+    paths = list(ranges.ranges)
+    if len(paths) <= MAX_CORNER_PATHS:
+        corners = [[]]
+        for path in paths:
+            corners = [c + [(path, end)] for c in corners for end in ranges.ranges[path]]
+        return [dict(c) for c in corners]
+    return [{path: end} for path in paths for end in ranges.ranges[path]]
+
+
+class Shield:
+    """``policy``'s action where every model certifies that the backup can still bring the arm
+    to rest clear of the wall after it, else the committed backup's (module docstring).
+    ``interventions`` counts the steps of the current episode where the backup acted. ``env``
+    gives the models' task arguments and, for ``__call__``, the robot; ``filter`` shields any
+    task's robot with the same arguments (a vector environment's in training: shielded RL), with
+    ``policy`` None."""
+
+    def __init__(self, env, policy, params: ScaraParams | None = DEFAULT_PARAMS, horizon: int = 200,
+                 rest_rate: float = 0.02, hold_tolerance: float = 0.01, wall_margin: float = 0.005,
+                 climb_margin: float = 0.01, robust=None, robust_samples: int = 8, robust_seed: int = 0) -> None:
         self.env = env.unwrapped
-        if self.env.task.actuator is not None:
-            raise ValueError("Shield: the action_delay / action_rate_limit line has a state the model cannot copy")
-        if not (isinstance(horizon, (int, np.integer)) and 1 <= horizon <= 1000):
-            raise ValueError(f"horizon must be an integer in [1, 1000] control steps, got {horizon!r}")
-        for name, value in (("rest_rate", rest_rate), ("climb_margin", climb_margin)):
-            if not (np.isfinite(value) and value > 0):
-                raise ValueError(f"{name} must be a finite number > 0, got {value!r}")
+        self.horizon = checks.integer("horizon", horizon, 1, MAX_HORIZON)
+        for name, value in (("rest_rate", rest_rate), ("hold_tolerance", hold_tolerance),
+                            ("wall_margin", wall_margin), ("climb_margin", climb_margin)):
+            if not (checks.is_real(value) and np.isfinite(value) and 0 < value <= 1):
+                raise ValueError(f"{name} must be a finite number in (0, 1], got {value!r}")
+        self.rest_rate, self.hold_tolerance = float(rest_rate), float(hold_tolerance)
+        self.wall_margin, self.climb_margin = float(wall_margin), float(climb_margin)
         self.policy = policy
-        self.horizon, self.rest_rate, self.climb_margin = int(horizon), float(rest_rate), float(climb_margin)
-        spec = self.env.spec
-        kwargs = {**(spec.kwargs if spec is not None else {}), "control_mode": self.env.control_mode,
-                  "randomize_target": False, "render_mode": None}
-        kwargs.pop("randomize_params", None)
-        if params is not None:
-            kwargs["params"] = params
-        self.model = gym.make(spec.id if spec is not None else TRAINING_ENV_ID, **kwargs).unwrapped
-        self.model_task = self.model.task
+        arguments = self.env.task.arguments
+        nominal = arguments["params"] if params is None else params
+        ranges = None
+        if robust is not None:
+            text = f"robust must be parameter ranges (a preset name, a dict or a ParameterRanges) or None, got {robust!r}"
+            try:
+                ranges = ParameterRanges.from_argument(robust, resolve_params(nominal))
+            except (TypeError, ValueError, KeyError) as error:
+                raise ValueError(f"{text}: {error}") from None
+            if ranges is None:
+                raise ValueError(text)
+            robust_samples = checks.integer("robust_samples", robust_samples, 1, MAX_ROBUST_SAMPLES)
+        self.model_task = ScaraTask(**{**arguments, "params": nominal, "randomize_target": False,
+                                       "randomize_params": ranges if ranges is not None else False,
+                                       "observation_noise": None,
+                                       "num_robots": 1 + (len(range_ends(ranges)) + robust_samples
+                                                          if ranges is not None else 0)})
+        task = self.model_task
+        self.model_params = [task.params]
+        if ranges is not None:
+            rng = np.random.default_rng(checks.seed("robust_seed", robust_seed))
+            self.model_params += [task.params.replace(v) for v in range_ends(ranges)]
+            self.model_params += [task.params.replace(ranges.draw(rng)) for _ in range(robust_samples)]
+        self.params = task.params
+        self.lowest_height = max(p.obstacle.height for p in self.model_params) + self.climb_margin
         self.name = f"{getattr(policy, 'name', 'policy')} + shield"
         self.interventions = 0
+        self._target = None         # the target the models' episodes hold for
+        self._committed: dict = {}  # robot index -> the certified backup's set-point
+
+    @property
+    def model(self):
+        """The nominal model's task (robot 0 of the models)."""
+        return self.model_task
 
     def reset(self) -> None:
         if self.policy is not None:
             self.policy.reset()
         self.interventions = 0
+        self._committed.clear()
 
-    def backup(self, obs: np.ndarray, task, index: int = 0) -> np.ndarray:
-        """The backup's action on robot ``index``'s raw observation, for the environment of ``task``."""
-        q = obs[Q].astype(float)
-        height = task.episode_params[index].obstacle.height
-        return task.setpoint_action(obs, hold_and_climb(q, q + obs[TARGET_ERROR], height + self.climb_margin))
+    def backup_setpoint(self, snapshot: dict) -> np.ndarray:
+        """The set-point the backup holds when it starts from the state of ``snapshot``."""
+        return hold_and_climb(snapshot["x"][:3], snapshot["target"], self.lowest_height)
 
-    def safe(self, snapshot: dict, action: np.ndarray) -> bool:
-        """Whether, from ``snapshot``, ``action`` and then the backup leave the wall untouched
-        and bring axes 1 and 2 to rest within the horizon (or reach the target)."""
+    def at_rest(self, obs: np.ndarray, setpoint: np.ndarray) -> np.ndarray:
+        """Per model (rows of obs): inside the terminal set of the backup towards ``setpoint``."""
+        still = np.all(np.abs(obs[:, RATES]) < self.rest_rate, axis=1)
+        held = np.all(np.abs(obs[:, Q][:, :2] - setpoint[:2]) < self.hold_tolerance, axis=1)
+        clear = (np.abs(obs[:, WALL_DISTANCE]) >= self.wall_margin) | (obs[:, HEIGHT_MARGIN] >= self.wall_margin)
+        return still & held & clear
+
+    def certify(self, snapshot: dict, action: np.ndarray) -> bool:
+        """Whether, in every model, ``action`` from ``snapshot`` and then the backup towards
+        ``backup_setpoint(snapshot)`` leave the wall untouched and reach the terminal set (or
+        the target) within the horizon."""
         task = self.model_task
-        if not np.array_equal(task.robot_params["target"][0], snapshot["target"]):  # the model's episode's target
-            self.model.reset(seed=0, options={"target": tuple(float(x) for x in snapshot["target"])})
-        task.restore(0, {**snapshot, "params": task.episode_params[0]})
-        outcome = task.outcomes[0]
-        action = np.ascontiguousarray(action, dtype=np.float64)
+        m = task.num_robots
+        target = np.asarray(snapshot["target"], dtype=np.float64)
+        if self._target is None or not np.array_equal(self._target, target):
+            for i, p in enumerate(self.model_params):
+                task.begin_episode(i, EpisodePlan(task.default_start, target, p, {}))
+            self._target = target.copy()
+        for i, p in enumerate(self.model_params):
+            task.restore(i, {**snapshot, "params": p})
+        setpoint = self.backup_setpoint(snapshot)
+        active = np.ones(m, dtype=bool)
+        actions = np.ascontiguousarray(np.tile(np.asarray(action, dtype=np.float64), (m, 1)))
+        outcomes = task.outcomes
         for _ in range(self.horizon + 1):
-            task.step_robot(0, action)
-            if outcome["collisions"] > 0:
+            if m == 1:
+                task.step_robot(0, actions[0])
+            else:
+                task.step_robots(active, actions, parallel=False)
+            if np.any(outcomes["collisions"][active] > 0):
                 return False
-            obs = task.obs[0]
-            if outcome["reached"] or np.all(np.abs(obs[RATES][:2]) < self.rest_rate):
+            active &= ~(outcomes["reached"] | self.at_rest(task.obs, setpoint))
+            if not active.any():
                 return True
-            action = np.ascontiguousarray(self.backup(obs.astype(np.float64), task))
+            actions = np.ascontiguousarray(np.broadcast_to(
+                task.setpoint_action(task.obs.astype(np.float64), setpoint), (m, 3)))
         return False
 
     def filter(self, task, index: int, action: np.ndarray) -> tuple[np.ndarray, bool]:
         """(the action robot ``index`` of ``task`` gets, whether the backup replaced ``action``):
-        the single environment's robot 0, or one robot of a vector environment's task."""
+        the single environment's robot 0, or one robot of a vector environment's task. The
+        committed backup is forgotten where a new episode starts (its first step)."""
         action = np.asarray(action, dtype=np.float64)
-        if self.safe(task.snapshot(index), action):
+        snapshot = task.snapshot(index)
+        if snapshot["episode_steps"] == 0 or index not in self._committed:
+            self._committed[index] = self.backup_setpoint(snapshot)  # at rest at the start
+        if self.certify(snapshot, action):
+            self._committed[index] = self.backup_setpoint(snapshot)
             return action, False
-        return self.backup(task.obs[index].astype(np.float64), task, index), True
+        setpoint = self._committed[index]
+        return task.setpoint_action(task.obs[index].astype(np.float64), setpoint), True
 
     def __call__(self, obs: np.ndarray) -> np.ndarray:
         action, replaced = self.filter(self.env.task, 0, self.policy(obs))

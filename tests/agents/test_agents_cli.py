@@ -8,7 +8,8 @@ import pytest
 
 from agents.cli import build_parser, run
 
-SUBCOMMANDS = ("evaluate", "train", "torch-ppo", "campaign", "compare", "sweep", "select", "optimal", "bench")
+SUBCOMMANDS = ("evaluate", "train", "torch-ppo", "campaign", "compare", "curves", "sweep", "select", "optimal",
+               "bench")
 
 
 def test_the_parser_has_exactly_the_documented_subcommands():
@@ -39,6 +40,9 @@ def test_the_console_script_is_installed_and_runs():
     (["select", "/nonexistent", "--out", "x"], "holds no config.json"),
     (["optimal", "--wall-margin", "0.5"], "--wall-margin must be in"),
     (["evaluate", "--policies", "nonsense"], "unknown policy 'nonsense'"),
+    (["evaluate", "--condition", "c12"], "invalid choice: 'c12'"),
+    (["evaluate", "--seed", "-1"], "--seed must be an integer >= 0"),
+    (["curves", "--episodes", "0"], "--episodes must be >= 1"),
 ])
 def test_a_mistake_is_one_line_and_exit_status_2(argv, says, capsys, tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
@@ -56,6 +60,14 @@ def test_evaluate_runs_the_classical_policies(tmp_path, capsys):
     rows = run(["evaluate", "--policies", "pd", "dec-restart:0.07", "--episodes", "1", "--out", str(tmp_path)])
     assert [r["policy"] for r in rows] == ["pd", "dec-restart (d=0.07 m)"]
     assert (tmp_path / "table.md").exists() and "| pd | 1 |" in capsys.readouterr().out
+    from scara_gym.benchmark.protocol import CONDITIONS
+
+    rows = run(["evaluate", "--policies", "dec-restart:0.07", "--condition", "c11-starts", "--episodes", "2",
+                "--out", str(tmp_path / "starts")])
+    assert rows[0]["seeds"] == CONDITIONS["c11-starts"].seeds(2)
+    rows = run(["evaluate", "--policies", "dec-restart:0.07", "--condition", "c11-starts", "--episodes", "2",
+                "--seed", "5", "--out", str(tmp_path / "other")])
+    assert rows[0]["seeds"] == [5, 6]  # the same distribution on other seeds
 
 
 @pytest.mark.slow
@@ -71,7 +83,7 @@ def test_train_campaign_and_compare_run_tiny(tmp_path):
     published = tmp_path / "published"
     assert len(run(["campaign", "torch-ppo", "--seeds", "0", "--runs", str(runs), "--publish", str(published)])) == 1
     entries = run(["compare", "--runs", str(published), "--conditions", "wall-closer", "--episodes", "2",
-                   "--no-optimal", "--shield", "--out", str(tmp_path / "cmp")])
+                   "--no-optimal", "--shield", "--no-robust-shield", "--out", str(tmp_path / "cmp")])
     assert [e["name"] for e in entries][-1] == "torch-ppo" and entries[-1]["tags"] == ["standard"]
     assert (tmp_path / "cmp" / "comparison.json").exists()
     summary = run(["torch-ppo", "--num-envs", "2", "--num-steps", "8", "--num-minibatches", "1", "--update-epochs",

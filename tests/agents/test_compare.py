@@ -10,7 +10,6 @@ pytest.importorskip("stable_baselines3")
 from agents.algorithms.sb3 import hyperparams, training  # noqa: E402
 from agents.experiments import (  # noqa: E402
     comparison,
-    conditions,
     evaluation,
     registry,
     report,
@@ -18,6 +17,10 @@ from agents.experiments import (  # noqa: E402
     statistics,
 )
 from agents.experiments.targets import target_checks  # noqa: E402
+from scara_gym.benchmark.protocol import CONDITIONS  # noqa: E402
+
+HEURISTICS = {v: {"distance": 0.07, "margin_distance": 0.084} for v in ("continue", "restart")}
+"""tuned distances for the tests (the real tuning runs in test_tuning)"""
 
 KEYS = {"name", "kind", "algorithm", "seeds", "episodes", "success_rate", "collision_rate", "time_iqm",
         "time_ci", "energy_mean", "condition"}
@@ -47,22 +50,6 @@ def test_the_vectorized_probability_of_improvement_is_rliables():
     assert statistics.probability_of_improvement(same, same) == metrics.probability_of_improvement(same, same) == 0.5
 
 
-def test_a_condition_without_draws_runs_its_one_episode_once():
-    """episodes_of(identical=True): the first episode stands for all where the first two are
-    the same (a deterministic policy, nothing drawn), and every episode runs where they differ."""
-    from agents.policies import DecHeuristic
-
-    fixed = conditions.make_env(conditions.CONDITIONS["c11"], "pd")
-    policy = DecHeuristic(fixed, "continue", critical_distance=0.07)
-    full, short = (evaluation.episodes_of(fixed, policy, 4, seed=1000, identical=same) for same in (False, True))
-    for key in ("success", "collisions", "reach_time", "energy"):
-        assert np.array_equal(full[key], short[key], equal_nan=True), key
-    drawn = conditions.make_env(conditions.CONDITIONS["random-targets"], "pd")
-    policy = DecHeuristic(drawn, "continue", critical_distance=0.07)
-    runs = evaluation.episodes_of(drawn, policy, 4, seed=1000, identical=True)
-    assert len(set(runs["energy"].tolist())) == 4  # other targets: every episode ran
-
-
 def test_comparison_command_writes_every_policy(tmp_path):
     runs = tmp_path / "runs"
     hyper = hyperparams.load_hyperparams("td3")
@@ -86,8 +73,8 @@ def test_comparison_command_writes_every_policy(tmp_path):
     with pytest.raises(ValueError, match="not a finished run"):
         run_folders.publish(runs / "Scara-C11-v1" / "pd" / "td3" / "seed2", tmp_path / "nowhere")
     out = tmp_path / "results"
-    entries, traces = comparison.compare(published, ["c11"], episodes=2, verbose=False, bisection_tolerance=0.01,
-                                      shielded=("torch-ppo",))
+    entries, traces = comparison.compare(published, ["c11"], episodes=2, verbose=False, heuristics=HEURISTICS,
+                                         shielded=("torch-ppo",))
     names = [e["name"] for e in entries]
     assert names[:2] == ["pd", "pd + shield"] and "optimal" in names
     assert names[-3:] == ["td3", "torch-ppo", "torch-ppo + shield"]
@@ -95,9 +82,9 @@ def test_comparison_command_writes_every_policy(tmp_path):
     assert entries[-1]["algorithm"] == "torch-ppo + shield" and entries[-1]["collision_rate"] == 0.0
     shielded_pd = entries[1]  # the shield alone takes PD past the wall
     assert shielded_pd["success_rate"] == 1.0 and shielded_pd["collision_rate"] == 0.0
-    assert sum(e["kind"] == "heuristic" for e in entries) == 4  # two variants, smallest safe and +20 %
-    for e in entries:
-        assert KEYS <= set(e) and e["condition"] == "c11" and e["episodes"] == 2
+    assert sum(e["kind"] == "heuristic" for e in entries) == 4  # two variants, tuned and with the margin
+    for e in entries:  # the C11 condition is one episode, whatever --episodes says
+        assert KEYS <= set(e) and e["condition"] == "c11" and e["episodes"] == 1
         assert e["time_ci"][0] <= e["time_iqm"] <= e["time_ci"][1]
     pd, optimal, td3 = entries[0], entries[names.index("optimal")], entries[names.index("td3")]
     assert pd["collision_rate"] == 1.0 and pd["time_iqm"] == statistics.TIME_LIMIT
@@ -115,15 +102,25 @@ def test_comparison_command_writes_every_policy(tmp_path):
     assert "| policy | c11 |\n" in table and "| pd | - (0.00 / 1.00) |\n" in table  # the overview
     assert f"| optimal | {optimal['time_iqm']:.3f} s |\n" in table
     json.dumps(entries)  # the JSON other tools read
+    import shutil  # a run folder of a registered pilot is left out unless pilots=True
+    shutil.copytree(published / "Scara-C11-v1" / "pd" / "torch-ppo",
+                    published / "Scara-C11-v1" / "pd" / "torch-ppo-residual-frugal")
+    assert "pilot" in registry.RUNS["torch-ppo-residual-frugal"].tags
+    kwargs = dict(episodes=1, verbose=False, heuristics=HEURISTICS, shielded=(), include_optimal=False,
+                  robust_shield=False)
+    names = [e["name"] for e in comparison.compare(published, ["c11"], **kwargs)[0]]
+    assert "torch-ppo-residual-frugal" not in names and "torch-ppo" in names
+    names = [e["name"] for e in comparison.compare(published, ["c11"], pilots=True, **kwargs)[0]]
+    assert "torch-ppo-residual-frugal" in names
 
 
 def test_a_condition_without_a_shipped_optimal_solution_is_compared_without_it(monkeypatch, capsys):
     import agents.policies.optimal.policy
 
     monkeypatch.setattr(agents.policies.optimal.policy, "cached_solution", lambda *args, **kwargs: None)
-    entries, _ = comparison.compare(None, ["c11"], episodes=2, verbose=True, bisection_tolerance=0.01)
+    entries, _ = comparison.compare(None, ["c11"], episodes=2, verbose=True, heuristics=HEURISTICS)
     assert [e["kind"] for e in entries] == ["pd", "pd"] + ["heuristic"] * 4  # no solve of minutes inside
-    assert "optimal: no shipped solution (scara-agents optimal --condition c11" in capsys.readouterr().out
+    assert "[c11] optimal: no shipped solution" in capsys.readouterr().out
 
 
 @pytest.mark.parametrize("algo", ["torch-ppo-dr", "torch-ppo-residual-random", "torch-ppo-residual-frugal",
@@ -160,23 +157,26 @@ def _entry(condition, kind, algorithm=None, success=1.0, collisions=0.0, time=1.
 
 
 def test_target_checks_say_met_or_the_number_reached():
-    entries = [_entry("c11", "heuristic", time=1.60, energy=70.0),
-               _entry("c11", "optimal", time=1.2241, energy=43.0),
-               _entry("c11", "learned", "ppo", time=1.34, energy=60.0, seeds=[0, 1]),
-               _entry("c11", "learned", "sac", success=0.5, time=1.20, energy=500.0, seeds=[0, 1], train_seconds=2000),
-               _entry("random-targets", "heuristic", time=1.55),
-               _entry("random-targets", "learned", "ppo", success=0.98, time=1.40, seeds=[0, 1])]
-    entries += [_entry(c, "learned", "ppo-residual-dr", success=0.80, seeds=[0]) for c in conditions.SHIFTS]
-    entries += [_entry(c, "learned", "torch-ppo-dr", success=0.97, seeds=[0]) for c in conditions.SHIFTS]
-    entries += [_entry(c, "learned", "ppo", success=1.0, seeds=[0]) for c in conditions.SHIFTS]  # not randomized
+    entries = [_entry("c11", "optimal", time=1.2241, energy=43.0),
+               _entry("c11", "learned", "sac", time=1.20, energy=500.0, seeds=[0, 1], train_seconds=2000)]
+    for condition in ("c11-starts", "random-targets"):
+        entries += [{**_entry(condition, "heuristic", time=1.60, energy=70.0), "name": "dec-continue, tuned (d=0.07 m)"},
+                    _entry(condition, "learned", "ppo", time=1.34, energy=60.0, seeds=[0, 1]),
+                    _entry(condition, "learned", "sac", success=0.5, time=1.20, energy=500.0, seeds=[0, 1])]
+    entries[-2]["success_rate"] = 0.98  # ppo misses on random targets
+    entries += [{**_entry("c11-starts", "pd", collisions=0.0), "name": "pd + shield", "shielded": True},
+                {**_entry("delay-1", "pd", collisions=0.02), "name": "pd + shield", "shielded": True},
+                {**_entry("load-x2", "pd", collisions=0.5), "name": "pd + shield", "shielded": True}]  # out of range
+    entries += [_entry("sensor-noise", "learned", "ppo", success=0.96, seeds=[0])]
     checks = {c["target"].split(":")[0]: c for c in target_checks(entries)}
     assert checks["optimal reference on the C11 target"]["met"] is True
-    best = checks["best learned on the C11 target"]
-    assert best["met"] is True and best["reached"].startswith("ppo:")  # sac is faster but fails seeds
-    assert checks["randomized targets"]["met"] is False and "success 0.98" in checks["randomized targets"]["reached"]
-    robust = checks["domain-randomized agent under the four shifts"]
-    assert robust["met"] is True and robust["reached"].startswith("torch-ppo-dr: load-x2 0.97 / 0.00")
-    assert checks["fast and frugal"]["met"] is True
+    shield = checks["shield"]
+    assert shield["met"] is False and shield["reached"] == "pd + shield in delay-1: collisions 0.02"
+    starts = checks["best learned without a shield, the C11 target from perturbed starts"]
+    assert starts["met"] is True and starts["reached"].startswith("ppo:")  # sac is faster but fails seeds
+    random = checks["best learned without a shield, randomized targets"]
+    assert random["met"] is False and "success 0.98" in random["reached"]
+    assert checks["best learned without a shield under small sensor noise"]["met"] is True
     training_check = checks["each training run <= 30 min on 2 CPU cores"]
     assert training_check["met"] is False and "sac 33.3 min" in training_check["reached"]
     slow = target_checks([_entry("c11", "optimal", time=1.26)])
@@ -190,35 +190,35 @@ def test_a_cached_evaluation_is_reused_only_for_the_same_model_condition_and_epi
     run = tmp_path / "seed0"
     train_torch_ppo(Config(num_envs=2, num_steps=8, num_minibatches=1, update_epochs=1, total_timesteps=16,
                            out=str(run)))
-    c11, load = conditions.CONDITIONS["c11"], conditions.CONDITIONS["load-x2"]
-    env = conditions.make_env(c11, "pd")
+    c11, load = CONDITIONS["c11-starts"], CONDITIONS["load-x2"]
     cache = tmp_path / "cache"
-    first = evaluation.learned_episodes(env, run, c11, "pd", 3, 1000, True, cache)
+    first = evaluation.learned_episodes(run, c11, "pd", 3, cache)
     assert len(list(cache.glob("*.npz"))) == 1 and not list(cache.glob("*.partial"))
 
     def must_not_run(*args, **kwargs):
         raise AssertionError("evaluated again")
 
-    monkeypatch.setattr(evaluation, "episodes_of", must_not_run)
-    again = evaluation.learned_episodes(env, run, c11, "pd", 3, 1000, True, cache)
+    monkeypatch.setattr(evaluation, "evaluate_condition", must_not_run)
+    again = evaluation.learned_episodes(run, c11, "pd", 3, cache)
     for key in ("success", "collisions", "reach_time", "energy", "trace"):
         assert np.array_equal(first[key], again[key], equal_nan=True), key
     assert len(again["traces"]) == 1 and np.array_equal(again["traces"][0], first["trace"])
-    key = evaluation.evaluation_key(run, c11, "pd", 3, 1000)
-    assert key != evaluation.evaluation_key(run, load, "pd", 3, 1000)
-    assert key != evaluation.evaluation_key(run, c11, "pd", 4, 1000)
-    assert key != evaluation.evaluation_key(run, c11, "pd", 3, 1001)
-    assert key != evaluation.evaluation_key(run, c11, "pd", 3, 1000, shield=True)
+    assert np.array_equal(again["seeds"], c11.seeds(3))
+    key = evaluation.evaluation_key(run, c11, "pd", 3)
+    assert key != evaluation.evaluation_key(run, load, "pd", 3)
+    assert key != evaluation.evaluation_key(run, c11, "pd", 4)
+    assert key != evaluation.evaluation_key(run, c11, "voltage", 3)
+    assert key != evaluation.evaluation_key(run, c11, "pd", 3, shield=True)
     model = (run / "model.pt").read_bytes()
     (run / "model.pt").write_bytes(model + b"\0")  # another model: not the cached one
     from agents.files import POLICY_FILES, write_digests
     write_digests(run, POLICY_FILES)  # its own manifest, as a run that wrote it would have
     with pytest.raises(AssertionError, match="evaluated again"):
-        evaluation.learned_episodes(env, run, c11, "pd", 3, 1000, True, cache)
+        evaluation.learned_episodes(run, c11, "pd", 3, cache)
 
 
 def test_conditions_compared_in_parallel_give_the_sequential_entries():
-    kwargs = dict(episodes=2, verbose=False, bisection_tolerance=0.01, include_optimal=False)
+    kwargs = dict(episodes=2, verbose=False, heuristics=HEURISTICS, include_optimal=False)
     sequential, _ = comparison.compare(None, ["c11", "wall-closer"], **kwargs)
     parallel, traces = comparison.compare_in_parallel(None, ["c11", "wall-closer"], 2, **kwargs)
     assert parallel == sequential and set(traces) == {"c11", "wall-closer"}
@@ -241,3 +241,49 @@ def test_a_fine_tuned_variant_starts_from_its_base_run_and_counts_its_training_t
 def test_rates_keep_two_decimals_unless_that_hides_an_episode():
     assert [statistics.rate_text(r) for r in (1.0, 0.0, 0.57, 0.998, 0.002, 2 / 3)] == \
         ["1.00", "0.00", "0.57", "0.998", "0.002", "0.667"]
+
+
+def test_verdicts_name_the_best_classical_and_learned_policy_and_the_winner():
+    entries = [_entry("c11-starts", "pd", collisions=1.0, success=0.0, time=3.0),
+               {**_entry("c11-starts", "heuristic", time=1.60, energy=70.0), "name": "dec-continue, tuned"},
+               _entry("c11-starts", "learned", "ppo", time=1.40, energy=60.0, seeds=[0]),
+               _entry("c11-starts", "learned", "sac", success=0.9, collisions=0.1, time=1.20, seeds=[0]),
+               {**_entry("delay-1", "heuristic", success=0.2, collisions=0.8), "name": "dec-continue, tuned"},
+               {**_entry("delay-1", "pd", time=1.5), "name": "pd + shield"},
+               _entry("delay-1", "learned", "ppo", success=0.5, collisions=0.5, seeds=[0])]
+    rows = report.verdicts(entries).splitlines()[4:]
+    assert rows[0].startswith("| c11-starts | dec-continue, tuned: 1.00 / 0.00, 1.600 s") and "| ppo: 1.00 / 0.00" in rows[0]
+    assert rows[0].endswith("| learned wins: 0.200 s faster |")
+    assert rows[1].startswith("| delay-1 | pd + shield:") and "classical wins: collisions 0.00 vs 0.50" in rows[1]
+
+
+def test_robustness_curves_run_every_policy_at_every_point(tmp_path, monkeypatch):
+    from agents.experiments import curves
+
+    monkeypatch.setattr(curves, "CURVES", {"load mass": ("arm.load_mass", (1.0, 3.0)),
+                                           "sensor noise": (None, (0.0, 5.0))})
+    monkeypatch.setattr(curves, "tune_heuristic", lambda variant: {"distance": 0.07, "margin_distance": 0.084})
+    data = curves.robustness_curves(None, episodes=2, verbose=False)
+    assert set(data["curves"]) == {"load mass", "sensor noise"}
+    for points in data["curves"].values():
+        assert len(points["policies"]) == 3
+        for row in points["policies"].values():
+            assert len(row["success"]) == len(row["time_iqm"]) == 2 and all(0 <= s <= 1 for s in row["success"])
+    shield = data["curves"]["load mass"]["policies"]["pd + shield"]
+    assert shield["success"][0] == 1.0 and shield["collisions"][0] == 0.0  # nominal: the shield's own model
+    written = curves.write_curves(data, tmp_path)
+    assert all(p.exists() for p in written) and json.loads((tmp_path / "curves.json").read_text())["episodes"] == 2
+
+
+def test_the_readme_headline_table_is_the_published_comparisons_overview():
+    """README's results table is generated (agents.experiments.report.overview over the headline
+    conditions) from docs/results/comparison.json, not copied by hand."""
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[2]
+    entries = json.loads((root / "docs" / "results" / "comparison.json").read_text())["policies"]
+    readme = (root / "README.md").read_text()
+    start, end = "<!-- headline table: generated -->\n", "<!-- end of the headline table -->"
+    assert start in readme and end in readme
+    table = readme[readme.index(start) + len(start):readme.index(end)]
+    assert table == report.overview(entries, report.HEADLINE_CONDITIONS)

@@ -119,11 +119,11 @@ def test_shipped_solution_file_is_complete():
 
 
 def test_every_shipped_solution_replays_in_its_own_condition():
-    """The C11 target under the comparison's parameter shifts (agents.experiments.conditions.CONDITIONS):
+    """The C11 target under the protocol's fixed parameter shifts (scara_gym.benchmark.protocol):
     each shipped solution, replayed with its condition's parameters, succeeds without a
     collision at its recorded time, above that condition's free bound."""
-    from agents.experiments.conditions import CONDITIONS
     from scara_gym import DEFAULT_PARAMS
+    from scara_gym.benchmark.protocol import CONDITIONS
 
     for path in sorted(SOLUTIONS.glob("*.json")):
         data = json.loads(path.read_text())

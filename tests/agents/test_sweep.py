@@ -62,9 +62,9 @@ def test_a_run_trained_for_a_looser_goal_is_evaluated_in_its_task_and_the_benchm
                                       episodes=2, total_timesteps=500)
     assert set(result) == {"train_seconds", *sweep.EPISODE_ARRAYS, *("benchmark_" + k for k in sweep.EPISODE_ARRAYS)}
     assert result["success"].shape == result["benchmark_success"].shape == (2,)
-    with pytest.raises(ValueError, match="task arguments must be among"):
-        from agents.experiments.conditions import CONDITIONS, make_env
-        make_env(CONDITIONS["c11"], "pd", "Scara-C11-v1", reward_type="dense")
+    with pytest.raises(ValueError, match="the condition 'random-targets' sets \\['randomize_target'\\] itself"):
+        from scara_gym.benchmark.protocol import CONDITIONS
+        CONDITIONS["random-targets"].make_env("pd", "Scara-C11-v1", randomize_target=False)
 
 
 def test_the_command_line_passes_its_concurrency_limit_to_ray(tmp_path, monkeypatch):

@@ -116,6 +116,17 @@ def test_reward_weights_reach_the_env_and_bad_ones_are_named():
         make_env(Config(num_envs=2, reward_weights={"energi": 1.0}))
 
 
+def test_the_protocols_training_distribution_reaches_the_env():
+    from scara_gym.benchmark.protocol import SENSOR_NOISE, START_OFFSETS
+
+    task = make_env(Config(num_envs=2, randomize_start=True, sensor_noise=2.0)).unwrapped.task
+    assert task.start_region is START_OFFSETS
+    assert task.sim_to_real.sensor_std.tolist() == [2 * SENSOR_NOISE["q"]] * 3 + [2 * SENSOR_NOISE["rate"]] * 3 + \
+        [2 * SENSOR_NOISE["current"]] * 3
+    plain = make_env(Config(num_envs=2)).unwrapped.task
+    assert plain.start_region is None and not plain.sim_to_real.noisy
+
+
 @pytest.mark.slow
 def test_a_tiny_run_trains_resumes_and_is_evaluated(tmp_path):
     out = tmp_path / "run"

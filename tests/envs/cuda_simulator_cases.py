@@ -256,3 +256,8 @@ def test_every_registered_id_has_the_cuda_backend(env_id):
         for label, c, g in zip(("obs", "reward", "terminated", "truncated", "info"), cpu.step(actions),
                                gpu.step(actions)):
             assert_same(c, g, f"step {k} {label}")
+
+
+def test_sensor_noise_is_refused_by_name_on_the_device():
+    with pytest.raises(ValueError, match="sensor_noise is not implemented on the CUDA vector env"):
+        ScaraCudaVectorEnv(num_envs=2, sensor_noise={"q": 1e-3})

@@ -240,6 +240,33 @@ def test_a_restored_snapshot_goes_on_as_the_episode_it_was_taken_from(control_mo
         delayed.unwrapped.task.restore(0, snapshot)
 
 
+@pytest.mark.parametrize("control_mode", ["pd", "voltage"])
+def test_a_snapshot_carries_the_actuator_line_and_restores_the_continuation(control_mode):
+    """With a delay and a rate limit the snapshot holds the line's pending and applied actions: a
+    copy restored from it goes on exactly as the source does."""
+    kwargs = dict(control_mode=control_mode, action_delay=2, action_rate_limit=30.0)
+    source, copy = gym.make("Scara-C11-v1", **kwargs), gym.make("Scara-C11-v1", **kwargs)
+    rng = np.random.default_rng(5)
+    actions = rng.uniform(-1.0, 1.0, (60, 3))
+    source.reset(seed=0)
+    for action in actions[:20]:
+        source.step(action)
+    snapshot = source.unwrapped.task.snapshot(0)
+    assert snapshot["pending"].shape == (2, 3) and snapshot["applied"].shape == (3,)
+    copy.reset(seed=0)
+    copy.unwrapped.task.restore(0, snapshot)
+    for action in actions[20:]:
+        left, right = source.step(action), copy.step(action)
+        np.testing.assert_array_equal(left[0], right[0])
+        np.testing.assert_array_equal(left[4]["applied_action"], right[4]["applied_action"])
+        if left[2]:
+            break
+    other = gym.make("Scara-C11-v1", control_mode=control_mode, action_delay=1)
+    other.reset(seed=0)
+    with pytest.raises(ValueError, match="action_delay 1\\) needs a snapshot with its state"):
+        other.unwrapped.task.restore(0, snapshot)
+
+
 def test_reward_terms_sum_to_the_reward_and_observations_stay_in_the_space():
     env = ScaraEnv(control_mode="voltage", collision="penalty", randomize_target=True)
     obs, _ = env.reset(seed=2)
@@ -476,3 +503,23 @@ def test_exact_ids_are_deterministic_for_a_seed_and_pass_check_env(env_id):
         warnings.simplefilter("always")
         check_env(env)
     assert [str(w.message) for w in caught] == []
+
+
+def test_randomize_start_draws_the_start_per_episode_inside_its_region():
+    from scara_gym.envs.task import START_REGION
+
+    env = gym.make("Scara-C11-v2", randomize_start=True, randomize_target=True)
+    starts = np.array([env.reset(seed=s)[1]["start"] for s in range(50)])
+    low, high = START_REGION
+    assert np.all(starts >= low) and np.all(starts <= high) and len({tuple(s) for s in starts}) == 50
+    obs, info = env.reset(seed=7)
+    assert np.allclose(obs[:3], info["start"], atol=1e-7)  # the robot starts there, at rest
+    np.testing.assert_array_equal(env.reset(seed=7)[1]["start"], info["start"])  # seeded
+    np.testing.assert_array_equal(env.reset(seed=7, options={"start": [0.1, 0.0, 0.0]})[1]["start"], [0.1, 0.0, 0.0])
+    own = gym.make("Scara-C11-v2", randomize_start=([0.0, 0.0, 0.0], [0.0, 0.0, 0.1]))
+    assert np.all(own.reset(seed=1)[1]["start"][:2] == 0.0)
+    fixed = gym.make("Scara-C11-v2")
+    assert np.all(fixed.reset(seed=3)[1]["start"] == 0.0)
+    for bad in ("yes", ([0.1, 0, 0], [0.0, 0, 0]), ([0, 0, 0], [2.0, 0, 0]), ([0, 0], [0, 0])):
+        with pytest.raises(ValueError, match="randomize_start must be False, True or \\(low, high\\)"):
+            gym.make("Scara-C11-v2", randomize_start=bad)

@@ -1,4 +1,4 @@
-"""Sim-to-real options: observation noise, actuation delay, action rate limit."""
+"""Sim-to-real options: sensor noise, observation noise, actuation delay, action rate limit."""
 
 import warnings
 
@@ -65,6 +65,54 @@ def test_observation_noise_has_its_std_per_field_and_leaves_the_physics_alone():
     assert np.all(np.abs(error[:, noisy_entries].mean(axis=0)) < 4 * expected[noisy_entries] / np.sqrt(301))
     space = ScaraEnv(observation_noise=NOISE).observation_space
     assert all(space.contains(obs) for obs in noisy["obs"])
+
+
+SENSOR_NOISE = {"q": 1e-3, "rate": 0.01, "current3": 0.05}
+
+
+def test_sensor_noise_reaches_every_entry_computed_from_the_measurements():
+    """Noisy q, rates and currents; target_error, the tip, the wall distance and the height margin
+    computed from the noisy q as a controller computes them; the physics untouched."""
+    actions = actions_towards_target(ScaraEnv(), 300)
+    clean = rollout(ScaraEnv(collision="penalty"), actions)
+    env = ScaraEnv(collision="penalty", sensor_noise=SENSOR_NOISE)
+    noisy = rollout(env, actions)
+    for key in ("true", "state", "reward", "end"):
+        np.testing.assert_array_equal(np.array(noisy[key]), np.array(clean[key]))
+    obs, true = np.array(noisy["obs"], dtype=np.float64), np.array(noisy["true"], dtype=np.float64)
+    L = OBSERVATION_LAYOUT
+    error = obs - true
+    expected = np.array([1e-3] * 3 + [0.01] * 3 + [0.0, 0.0, 0.05])
+    np.testing.assert_allclose(error[:, :9].std(axis=0)[expected > 0], expected[expected > 0], rtol=0.15)
+    assert np.all(error[:, :9][:, expected == 0] == 0.0)
+    np.testing.assert_allclose(obs[:, L["target_error"]] + obs[:, L["q"]],  # the target, as measured q sees it
+                               true[:, L["target_error"]] + true[:, L["q"]], atol=2e-6)
+    p = env.params.arm
+    q1, q2 = obs[:, 0], obs[:, 1]
+    tip_x = p.link1_length * np.cos(q1) + p.link2_length * np.cos(q1 + q2)
+    tip_y = p.link1_length * np.sin(q1) + p.link2_length * np.sin(q1 + q2)
+    np.testing.assert_allclose(obs[:, L["tip_x"]], tip_x, atol=1e-6)
+    np.testing.assert_allclose(obs[:, L["tip_y"]], tip_y, atol=1e-6)
+    np.testing.assert_allclose(obs[:, L["wall_distance"]], tip_x - env.params.obstacle.x_position, atol=1e-6)
+    np.testing.assert_allclose(obs[:, L["height_margin"]], obs[:, 2] - env.params.obstacle.height, atol=1e-6)
+    assert np.std(obs[:, L["tip_x"]] - true[:, L["tip_x"]]) > 1e-4  # the noise on q reached the tip
+    for name in ("critical", "time_left"):  # not measurements
+        np.testing.assert_array_equal(obs[:, L[name]], true[:, L[name]])
+    assert all(env.observation_space.contains(o) for o in noisy["obs"])
+    again = rollout(ScaraEnv(collision="penalty", sensor_noise=SENSOR_NOISE), actions)
+    np.testing.assert_array_equal(np.array(again["obs"]), np.array(noisy["obs"]))  # seeded
+
+
+def test_sensor_noise_and_observation_noise_stack_in_the_vector_env():
+    kwargs = dict(sensor_noise={"q": 1e-3}, observation_noise={"current": 0.01})
+    venv = gym.make_vec("Scara-C11-v1", num_envs=2, vectorization_mode="vector_entry_point", **kwargs)
+    single = gym.make("Scara-C11-v1", **kwargs)
+    obs, _ = venv.reset(seed=[5, 6])
+    first, _ = single.reset(seed=6)
+    np.testing.assert_array_equal(obs[1], first)  # robot i's noise from its own episode generator
+    action = single.unwrapped.setpoint_to_action([0.1, 0.1, 0.1])
+    obs, *_ = venv.step(np.tile(action, (2, 1)))
+    np.testing.assert_array_equal(obs[1], single.step(action)[0])
 
 
 def test_noise_follows_the_seed():
@@ -144,6 +192,8 @@ def test_envs_with_the_options_pass_the_checkers():
     (dict(observation_noise={"q": -0.1}), ValueError, r"observation_noise\['q'\] must be a finite number in \[0"),
     (dict(observation_noise={"q": "0.1"}), TypeError, r"observation_noise\['q'\] must be a finite number"),
     (dict(observation_noise=0.1), TypeError, "observation_noise must be a dict"),
+    (dict(sensor_noise={"tip_x": 0.1}), ValueError, r"unknown sensor_noise \['tip_x'\]; allowed: \['current', 'current1', "),
+    (dict(sensor_noise={"rate": -1.0}), ValueError, r"sensor_noise\['rate'\] must be a finite number in \[0"),
     (dict(action_delay=-1), ValueError, r"action_delay must be an integer in \[0, 100\]"),
     (dict(action_delay=1.5), TypeError, r"action_delay must be an integer in \[0, 100\]"),
     (dict(action_rate_limit=0.0), ValueError, r"action_rate_limit must be a finite number in \[1e-06"),

@@ -9,10 +9,10 @@ from dataclasses import asdict
 import gymnasium as gym
 import numpy as np
 
-from agents.policies.episode import run_episode
 from agents.policies.optimal.solutions import cached_solution, params_key
 from agents.policies.optimal.transcription import CollocationConfig, minimum_time
 from scara_gym import DEFAULT_PARAMS, ScaraParams
+from scara_gym.benchmark.episodes import run_episode
 from scara_gym.envs import OBSERVATION_LAYOUT
 from scara_gym.registration import TRAINING_ENV_ID
 
@@ -85,7 +85,7 @@ def replaying(actions: np.ndarray, env_id: str, start, target, params: ScaraPara
 def replay(actions: np.ndarray, env_id: str = TRAINING_ENV_ID, start=(0.0, 0.0, 0.0), target=(2.0, 2.0, 0.3),
            params: ScaraParams = DEFAULT_PARAMS) -> dict:
     """Held actions run in the environment ("voltage" mode); the episode summary of
-    agents.policies.episode.run_episode (success, collisions, reach_time, energy, ...)."""
+    scara_gym.benchmark.episodes.run_episode (success, collisions, reach_time, energy, ...)."""
     return run_episode(*replaying(actions, env_id, start, target, params), seed=0)
 
 

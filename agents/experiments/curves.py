@@ -1,0 +1,82 @@
+"""Robustness curves: success and time to target against a shift's magnitude, per policy.
+
+Each curve scales one parameter (every axis's, for ``axes.*``) by the factors of :data:`CURVES`,
+from starts in the protocol's start region (``scara_gym.benchmark.protocol.shift_condition``, on
+c11-starts' seeds), or scales the sensor noise of "sensor-noise" (``noise_condition``). Every
+point runs the same episodes for every policy; a learned policy runs them with each of its seeds.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+
+from agents.experiments.comparison import ROBUST_RANGES
+from agents.experiments.evaluation import learned_episodes, learned_runs
+from agents.experiments.report import curve_figure
+from agents.experiments.statistics import iqm_with_ci, time_scores
+from agents.experiments.tuning import tune_heuristic
+from agents.policies import DecHeuristic, PDPolicy
+from scara_gym.benchmark.protocol import evaluate, noise_condition, shift_condition
+from scara_gym.wrappers import Shield
+
+CURVES = {
+    "load mass": ("arm.load_mass", (1.0, 1.5, 2.0, 2.5, 3.0)),
+    "current limits": ("axes.*.current_limit", (1.0, 0.9, 0.85, 0.8, 0.7)),
+    "motor resistances": ("axes.*.resistance", (1.0, 1.1, 1.2, 1.3, 1.5)),
+    "sensor noise": (None, (0.0, 1.0, 2.0, 5.0, 10.0)),
+}
+"""curve -> (dotted parameter path, or None for the sensor noise; the factors of its points)"""
+LEARNED = ("torch-ppo-residual-fast", "torch-ppo-residual-dr", "torch-ppo-residual-random-replay", "ppo-residual")
+"""the learned baselines drawn on the curves (every seed)"""
+
+
+def point_condition(curve: str, factor: float):
+    path, _ = CURVES[curve]
+    return noise_condition(factor) if path is None else shift_condition(path, factor)
+
+
+def robustness_curves(runs_root: Path | None, episodes: int = 20, learned: tuple[str, ...] = LEARNED,
+                      cache: Path | None = None, robust_shield: bool = False, verbose: bool = True) -> dict:
+    """{"curves": {curve: {"factors", "policies": {label: {"success", "collisions", "time_iqm"}}}}}:
+    every point of every curve for PD behind the shield (and the robust shield), the heuristic at
+    its tuned distance and with the margin, and the ``learned`` runs found under ``runs_root``."""
+    tuned = tune_heuristic("continue")
+    classical = {
+        "pd + shield": lambda env: Shield(env, PDPolicy(env)),
+        f"dec-continue, tuned (d={tuned['distance']:.4f} m)":
+            lambda env: DecHeuristic(env, "continue", critical_distance=tuned["distance"]),
+        f"dec-continue, margin (d={tuned['margin_distance']:.4f} m)":
+            lambda env: DecHeuristic(env, "continue", critical_distance=tuned["margin_distance"]),
+    }
+    if robust_shield:
+        classical[f"pd + robust shield ({ROBUST_RANGES!r} ranges)"] = \
+            lambda env: Shield(env, PDPolicy(env), robust=ROBUST_RANGES)
+    groups = {k: v for k, v in (learned_runs(runs_root) if runs_root else {}).items() if k[0] in learned}
+    out = {}
+    for curve, (_, factors) in CURVES.items():
+        policies: dict[str, dict] = {}
+        for factor in factors:
+            condition = point_condition(curve, factor)
+            results = {label: [evaluate(condition, factory, "pd", episodes)] for label, factory in classical.items()}
+            for (algorithm, mode), run_dirs in sorted(groups.items()):
+                results[algorithm] = [learned_episodes(d, condition, mode, episodes, cache) for d in run_dirs]
+            for label, runs in results.items():
+                row = policies.setdefault(label, {"success": [], "collisions": [], "time_iqm": [], "seeds": len(runs)})
+                row["success"].append(float(np.mean([r["success"].mean() for r in runs])))
+                row["collisions"].append(float(np.mean([r["collisions"].mean() for r in runs])))
+                row["time_iqm"].append(iqm_with_ci(time_scores(runs), reps=200)[0])
+                if verbose:
+                    print(f"[{curve} x{factor:g}] {label}: success {row['success'][-1]:.2f}, collisions "
+                          f"{row['collisions'][-1]:.2f}, time IQM {row['time_iqm'][-1]:.3f} s", flush=True)
+        out[curve] = {"factors": list(factors), "policies": policies}
+    return {"episodes": episodes, "curves": out, "heuristic": tuned}
+
+
+def write_curves(data: dict, out: Path) -> list[Path]:
+    """curves.json and the figure (agents.experiments.report.curve_figure) under ``out``."""
+    out.mkdir(parents=True, exist_ok=True)
+    (out / "curves.json").write_text(json.dumps(data, indent=1))
+    return [out / "curves.json", curve_figure(data, out / "comparison_robustness.png")]
