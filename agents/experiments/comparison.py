@@ -157,7 +157,7 @@ class _ConditionTable:
             tags = RUNS[algorithm].tags if algorithm in RUNS else frozenset()
             for shield in (False, True) if algorithm in shielded else (False,):
                 runs = [learned_episodes(d, self.condition, mode, self.episodes, cache, shield) for d in run_dirs]
-                label = algorithm + (SHIELD_SUFFIX if shield else "")
+                label = algorithm + ("" if mode == "pd" else f" ({mode})") + (SHIELD_SUFFIX if shield else "")
                 e = self.add(label, "learned", label, mode, runs, [c["seed"] for c in configs],
                              note=SHIELD_NOTE if shield else "", train_seconds=[training_seconds(c) for c in configs],
                              shielded=shield or "shielded" in tags, tags=tags, run=algorithm)

@@ -27,7 +27,7 @@ from scara_gym.benchmark.protocol import Condition, evaluate as evaluate_conditi
 from scara_gym.registration import ENV_ID, TRAINING_ENV_ID
 from scara_gym.wrappers import Shield
 
-SHIELD_KEY = b"scara_gym.wrappers.Shield with a committed backup, defaults"
+SHIELD_KEY = b"scara_gym.wrappers.Shield with a committed backup, 3 steps at rest, a flushed line, defaults"
 """what a shielded evaluation's cache key says of the shield (changed with the shield's rules)"""
 POLICY_SPECS = "pd, dec-continue[:d], dec-restart[:d], optimal, ppo:NAME_OR_DIR, sb3:RUN_DIR, torchppo:RUN_DIR, shield:SPEC"
 

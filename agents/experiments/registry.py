@@ -145,7 +145,7 @@ RUNS = _runs(
             "training and evaluation, 1M steps",
             fields={**RESIDUAL, "reward_weights": {**FAST_WEIGHTS, "energy": 0.03}, "shield": True,
                     "total_timesteps": 1_000_000},
-            tags=frozenset({"engineered", "residual", "energy-aware", "shielded"})),
+            tags=frozenset({"pilot", "engineered", "residual", "energy-aware", "shielded"})),
 )
 """every registered run, in the campaign's order"""
 

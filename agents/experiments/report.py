@@ -133,15 +133,17 @@ def _verdict_cell(e: dict) -> str:
 
 
 def verdicts(entries: list[dict]) -> str:
-    """Per condition: the best classical and the best learned policy (ranked by _rank: clean
-    first, then collisions, success, time), and which wins by how much."""
-    lines = ["#### Verdicts: the best classical and the best learned policy per condition "
-             "(success / collisions, time IQM, energy)", "",
-             "| condition | best classical | best learned | verdict |", "|---|---|---|---|"]
+    """Per condition: the best classical and the best learned policy without a shield (ranked by
+    _rank: clean first, then collisions, success, time), which wins by how much, and the best
+    policy behind a shield."""
+    lines = ["#### Verdicts: the best classical and the best learned policy without a shield, per condition "
+             "(success / collisions, time IQM, energy), and the best behind a shield", "",
+             "| condition | best classical | best learned | verdict | best behind a shield |", "|---|---|---|---|---|"]
     for name in dict.fromkeys(e["condition"] for e in entries):
         here = [e for e in entries if e["condition"] == name]
-        classical = sorted((e for e in here if e["kind"] in CLASSICAL_KINDS), key=_rank)
-        learned = sorted((e for e in here if e["kind"] == "learned"), key=_rank)
+        classical = sorted((e for e in here if e["kind"] in CLASSICAL_KINDS and not e.get("shielded")), key=_rank)
+        learned = sorted((e for e in here if e["kind"] == "learned" and not e.get("shielded")), key=_rank)
+        shielded = sorted((e for e in here if e.get("shielded")), key=_rank)
         if not classical or not learned:
             continue
         c, ell = classical[0], learned[0]
@@ -152,7 +154,8 @@ def verdicts(entries: list[dict]) -> str:
         else:
             by = (f"collisions {rate_text(winner['collision_rate'])} vs {rate_text(other['collision_rate'])}, "
                   f"success {rate_text(winner['success_rate'])} vs {rate_text(other['success_rate'])}")
-        lines.append(f"| {name} | {_verdict_cell(c)} | {_verdict_cell(ell)} | {side} wins: {by} |")
+        best_shielded = _verdict_cell(shielded[0]) if shielded else "-"
+        lines.append(f"| {name} | {_verdict_cell(c)} | {_verdict_cell(ell)} | {side} wins: {by} | {best_shielded} |")
     return "\n".join(lines) + "\n"
 
 

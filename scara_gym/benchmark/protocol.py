@@ -173,7 +173,7 @@ def tuning(name: str, episodes: int | None = None) -> Condition:
     choosing a policy's parameters; never scored."""
     base = get_condition(name)
     index = (base.seed - EVALUATION_SEED) // SEED_BAND
-    return dataclasses.replace(base, name=f"{name} (tuning)", seed=TUNING_SEED + index * SEED_BAND,
+    return dataclasses.replace(base, name=f"{base.name} (tuning)", seed=TUNING_SEED + index * SEED_BAND,
                                episodes=base.episodes if episodes is None else episodes)
 
 
@@ -181,7 +181,7 @@ def noise_condition(scale: float) -> Condition:
     """"sensor-noise" at ``scale`` times its levels (the noise curve's points), on its seeds."""
     scale = checks.real("scale", scale, 0.0, 1e3)
     base = CONDITIONS["sensor-noise"]
-    return dataclasses.replace(base, name=f"sensor-noise-x{scale:g}",
+    return dataclasses.replace(base, name=f"sensor noise at {scale:g}x",
                                description=f"the C11 episode with noisy sensors at {scale:g}x sensor-noise's levels",
                                env_kwargs={"sensor_noise": {k: scale * v for k, v in SENSOR_NOISE.items()}})
 
@@ -197,6 +197,13 @@ def shift_condition(path: str, factor: float) -> Condition:
                                description=f"{path} x{factor:g}, from starts in the start region", params=params)
 
 
+def draws_nothing(env) -> bool:
+    """Whether the environment itself draws nothing per episode (start, target, parameters, noise)."""
+    task = env.unwrapped.task
+    return not (task.randomize_target or task.randomization or task.start_region is not None
+                or task.sim_to_real.noisy)
+
+
 def evaluate(condition: Condition | str, policy_factory: Callable, control_mode: str = "pd",
              episodes: int | None = None, env_id: str = TRAINING_ENV_ID, record: int = 1, env_kwargs=None) -> dict:
     """``policy_factory(env)``'s episodes in ``condition`` (a Condition or a name): per-episode
@@ -207,6 +214,6 @@ def evaluate(condition: Condition | str, policy_factory: Callable, control_mode:
     env = condition.make_env(control_mode, env_id, **(env_kwargs or {}))
     seeds = condition.seeds(episodes)
     result = run_episodes(env, policy_factory(env), seeds, [condition.options(s) for s in seeds],
-                          identical=condition.deterministic, record=record)
+                          identical=condition.deterministic and draws_nothing(env), record=record)
     result["condition"] = condition.name
     return result

@@ -92,7 +92,8 @@ class ScaraCudaVectorEnv(VectorEnv):
     Gaussian per entry, then clipped to the observation space), not the same draws, since the
     CPU env draws robot i's noise from robot i's episode generator, which here draws the plans
     ahead. ``sensor_noise`` (derived entries from noisy measurements) is not implemented here and
-    is refused with a ValueError. Rendering is not supported.
+    is refused with a ValueError, and so is ``randomize_start`` with a delay or a rate limit in
+    "pd" mode (the autoreset's neutral action holds the default start). Rendering is not supported.
     """
 
     metadata = {"autoreset_mode": AutoresetMode.NEXT_STEP, "render_modes": []}
@@ -161,6 +162,9 @@ class ScaraCudaVectorEnv(VectorEnv):
         self.actuator = TorchActuator(torch, options, n, self.device) if options.shapes_actions else None
         # the neutral action of an episode that starts at the default start (every autoreset one)
         self._neutral = self._neutral_actions(np.tile(task.default_start, (n, 1)))
+        if task.start_region is not None and options.shapes_actions and task.control_mode == "pd":
+            raise ValueError("randomize_start with action_delay or action_rate_limit in 'pd' mode is not implemented "
+                             "on the CUDA vector env (its autoreset holds the default start); use the CPU vector env")
         if options.sensor_noisy:
             raise ValueError("sensor_noise is not implemented on the CUDA vector env (its derived entries would "
                              "need the kinematics on the device); use the CPU vector env or observation_noise")

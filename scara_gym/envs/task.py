@@ -305,16 +305,20 @@ class ScaraTask:
         """The "pd" set-point q^ [rad, rad, m] an action commands (batches too)."""
         return self.setpoint_center + self.setpoint_half * np.asarray(action, dtype=float)
 
-    def pd_action(self, obs, setpoint) -> np.ndarray:
+    def pd_action(self, obs, setpoint, robot: int | None = None) -> np.ndarray:
         """The "voltage"-mode action that applies the C11 PD law to a set-point q^ [rad, rad, m]
         on an observation: U / limit, with the widened limit where the observation says
         critical (what the environment's "pd" mode does, evaluated once per control step).
-        Batches: obs (n, 18) and setpoint (n, 3) or (3,) give (n, 3); one obs gives (3,)."""
+        Batches: obs (n, 18) and setpoint (n, 3) or (3,) give (n, 3); one obs gives (3,).
+        robot: whose parameters (default: robot i's for row i of a batch over all robots, else
+        the first robot's)."""
         single = np.ndim(obs) == 1
         obs = np.atleast_2d(np.asarray(obs, dtype=np.float64))
         setpoints = np.ascontiguousarray(np.broadcast_to(np.asarray(setpoint, dtype=np.float64), (len(obs), 3)))
-        # robot i's parameters for row i of a batch over all robots, else the first robot's
-        params = self.robot_params if len(obs) == self.num_robots else self.robot_params[:1]
+        if robot is not None:
+            params = self.robot_params[robot:robot + 1]
+        else:
+            params = self.robot_params if len(obs) == self.num_robots else self.robot_params[:1]
         out = pd_actions(np.ascontiguousarray(obs), setpoints, params, np.empty((len(obs), 3)))
         return out[0] if single else out
 
@@ -334,12 +338,13 @@ class ScaraTask:
         setpoint = obs[:, OBSERVATION_LAYOUT["q"]] + (actions * boost * limit + p["d_gain"] * rates) / p["p_gain"]
         return setpoint[0] if single else setpoint
 
-    def setpoint_action(self, obs, setpoint) -> np.ndarray:
+    def setpoint_action(self, obs, setpoint, robot: int | None = None) -> np.ndarray:
         """The action that commands the set-point q^ [rad, rad, m] in this task's control mode:
-        the clipped "pd" action, or the PD law's voltages (:meth:`pd_action`); batches too."""
+        the clipped "pd" action, or the PD law's voltages (:meth:`pd_action`, with ``robot``'s
+        parameters where given); batches too."""
         if self.control_mode == "pd":
             return np.clip(self._pd_actions(setpoint), -1.0, 1.0)
-        return self.pd_action(obs, setpoint)
+        return self.pd_action(obs, setpoint, robot)
 
     @staticmethod
     def check_joints(value, name: str) -> np.ndarray:

@@ -14,16 +14,18 @@ Zeilinger 2021) with a *committed* backup:
   vector, the current holds, the integrator's step size and the actuator line's delay and slew
   state) into its models, applies the policy's action there and then the backup, until every
   model has reached the **terminal set**: axes 1 and 2 within ``hold_tolerance`` of the held
-  angles and every joint rate below ``rest_rate`` (the closed loop at rest at its set-point),
-  with the tip at least ``wall_margin`` from the wall's plane or that much above the wall. A
-  model that touches the wall, or has not come to rest within ``horizon`` steps, rejects the
-  action.
+  angles and every joint rate below ``rest_rate`` (the closed loop at rest at its set-point)
+  for ``REST_STEPS`` steps in a row, the actuator line flushed (every action the policy gave
+  applied, the delayed and slewed actions at the backup's), with the tip and the held angles'
+  tip at least ``wall_margin`` from the wall's plane on the same side, or the tool that much
+  above the wall. A model that touches the wall, or has not come to rest within ``horizon``
+  steps, rejects the action.
 - An accepted action's backup is committed: if the next action is rejected, the robot gets
   that backup, whose whole rollout to the terminal set was checked one step earlier. With an
   exact model the robot therefore never touches the wall: every state it reaches lies on a
   rollout that was certified to come to rest clear of it.
 
-Models: the nominal parameters (``params``; None: the environment's own) and, with ``robust``
+Models: the nominal parameters (``params``; None: the episode's own, an exact model) and, with ``robust``
 (a :class:`~scara_gym.envs.randomization.ParameterRanges` argument around them: a preset name,
 a dict path -> (low, high) or a ParameterRanges), the ranges' ends (:func:`range_ends`: every
 corner for up to three parameters, else each parameter at either end) and ``robust_samples``
@@ -50,6 +52,8 @@ Q, RATES, TARGET_ERROR = (OBSERVATION_LAYOUT[name] for name in ("q", "rate", "ta
 WALL_DISTANCE, HEIGHT_MARGIN = OBSERVATION_LAYOUT["wall_distance"], OBSERVATION_LAYOUT["height_margin"]
 MAX_HORIZON = 1000      # [control steps]
 MAX_ROBUST_SAMPLES = 256
+REST_STEPS = 3          # consecutive steps at rest that end a rollout (not a turning point)
+LINE_TOLERANCE = 1e-3   # [action units] a flushed actuator line: its actions this close to the backup's
 
 
 def hold_and_climb(held: np.ndarray, target: np.ndarray, lowest_height: float = -np.inf) -> np.ndarray:
@@ -93,6 +97,9 @@ class Shield:
                 raise ValueError(f"{name} must be a finite number in (0, 1], got {value!r}")
         self.rest_rate, self.hold_tolerance = float(rest_rate), float(hold_tolerance)
         self.wall_margin, self.climb_margin = float(wall_margin), float(climb_margin)
+        if self.climb_margin < self.wall_margin:
+            raise ValueError(f"climb_margin ({climb_margin!r} m) must be at least wall_margin ({wall_margin!r} m): the "
+                             "backup climbs to where its terminal set counts the tool as above the wall")
         self.policy = policy
         arguments = self.env.task.arguments
         nominal = arguments["params"] if params is None else params
@@ -112,6 +119,7 @@ class Shield:
                                        "num_robots": 1 + (len(range_ends(ranges)) + robust_samples
                                                           if ranges is not None else 0)})
         task = self.model_task
+        self.exact = params is None  # the first model takes each episode's own parameters
         self.model_params = [task.params]
         if ranges is not None:
             rng = np.random.default_rng(checks.seed("robust_seed", robust_seed))
@@ -121,7 +129,7 @@ class Shield:
         self.lowest_height = max(p.obstacle.height for p in self.model_params) + self.climb_margin
         self.name = f"{getattr(policy, 'name', 'policy')} + shield"
         self.interventions = 0
-        self._target = None         # the target the models' episodes hold for
+        self._episode = None        # (target, first model's parameters) the models' episodes hold for
         self._committed: dict = {}  # robot index -> the certified backup's set-point
 
     @property
@@ -140,11 +148,43 @@ class Shield:
         return hold_and_climb(snapshot["x"][:3], snapshot["target"], self.lowest_height)
 
     def at_rest(self, obs: np.ndarray, setpoint: np.ndarray) -> np.ndarray:
-        """Per model (rows of obs): inside the terminal set of the backup towards ``setpoint``."""
+        """Per model (rows of obs, in the models' order): at rest at the backup's ``setpoint``,
+        clear of the wall (one step of the terminal test; certify also asks for REST_STEPS in a
+        row and a flushed actuator line)."""
+        task = self.model_task
         still = np.all(np.abs(obs[:, RATES]) < self.rest_rate, axis=1)
         held = np.all(np.abs(obs[:, Q][:, :2] - setpoint[:2]) < self.hold_tolerance, axis=1)
-        clear = (np.abs(obs[:, WALL_DISTANCE]) >= self.wall_margin) | (obs[:, HEIGHT_MARGIN] >= self.wall_margin)
-        return still & held & clear
+        p = task.robot_params[:len(obs)]
+        hold_x = p["link1_length"] * np.cos(setpoint[0]) + p["link2_length"] * np.cos(setpoint[0] + setpoint[1])
+        hold_distance = hold_x - p["wall_x"]  # where the held angles put the tip
+        beside = (np.abs(obs[:, WALL_DISTANCE]) >= self.wall_margin) & (np.abs(hold_distance) >= self.wall_margin) \
+            & (np.sign(hold_distance) == np.sign(obs[:, WALL_DISTANCE]))
+        above = obs[:, HEIGHT_MARGIN] >= self.wall_margin
+        return still & held & (beside | above)
+
+    def _line_flushed(self, actions: np.ndarray) -> np.ndarray:
+        """Per model: the actuator line holds and applies only the backup's ``actions`` (no
+        action of the policy still waiting in it); True without a delay or rate limit."""
+        line = self.model_task.actuator
+        if line is None:
+            return np.ones(len(actions), dtype=bool)
+        flushed = np.all(np.abs(line.applied - actions) < LINE_TOLERANCE, axis=1)
+        if line.pending.shape[1]:
+            flushed &= np.all(np.abs(line.pending - actions[:, None, :]) < LINE_TOLERANCE, axis=(1, 2))
+        return flushed
+
+    def _begin(self, snapshot: dict) -> list:
+        """The models' parameters for this snapshot, their episodes begun where the target or
+        the exact model's parameters changed."""
+        task = self.model_task
+        params = [snapshot["params"], *self.model_params[1:]] if self.exact else self.model_params
+        target = np.asarray(snapshot["target"], dtype=np.float64)
+        if self._episode is None or not np.array_equal(self._episode[0], target) or (
+                self._episode[1] is not params[0] and self._episode[1] != params[0]):
+            for i, p in enumerate(params):
+                task.begin_episode(i, EpisodePlan(task.default_start, target, p, {}))
+            self._episode = (target.copy(), params[0])
+        return params
 
     def certify(self, snapshot: dict, action: np.ndarray) -> bool:
         """Whether, in every model, ``action`` from ``snapshot`` and then the backup towards
@@ -152,15 +192,11 @@ class Shield:
         the target) within the horizon."""
         task = self.model_task
         m = task.num_robots
-        target = np.asarray(snapshot["target"], dtype=np.float64)
-        if self._target is None or not np.array_equal(self._target, target):
-            for i, p in enumerate(self.model_params):
-                task.begin_episode(i, EpisodePlan(task.default_start, target, p, {}))
-            self._target = target.copy()
-        for i, p in enumerate(self.model_params):
+        for i, p in enumerate(self._begin(snapshot)):
             task.restore(i, {**snapshot, "params": p})
         setpoint = self.backup_setpoint(snapshot)
         active = np.ones(m, dtype=bool)
+        rested = np.zeros(m, dtype=int)
         actions = np.ascontiguousarray(np.tile(np.asarray(action, dtype=np.float64), (m, 1)))
         outcomes = task.outcomes
         for _ in range(self.horizon + 1):
@@ -170,11 +206,13 @@ class Shield:
                 task.step_robots(active, actions, parallel=False)
             if np.any(outcomes["collisions"][active] > 0):
                 return False
-            active &= ~(outcomes["reached"] | self.at_rest(task.obs, setpoint))
-            if not active.any():
-                return True
             actions = np.ascontiguousarray(np.broadcast_to(
                 task.setpoint_action(task.obs.astype(np.float64), setpoint), (m, 3)))
+            rest = self.at_rest(task.obs, setpoint) & self._line_flushed(actions)
+            rested = np.where(rest, rested + 1, 0)
+            active &= ~(outcomes["reached"] | (rested >= REST_STEPS))
+            if not active.any():
+                return True
         return False
 
     def filter(self, task, index: int, action: np.ndarray) -> tuple[np.ndarray, bool]:
@@ -189,7 +227,7 @@ class Shield:
             self._committed[index] = self.backup_setpoint(snapshot)
             return action, False
         setpoint = self._committed[index]
-        return task.setpoint_action(task.obs[index].astype(np.float64), setpoint), True
+        return task.setpoint_action(task.obs[index].astype(np.float64), setpoint, index), True
 
     def __call__(self, obs: np.ndarray) -> np.ndarray:
         action, replaced = self.filter(self.env.task, 0, self.policy(obs))

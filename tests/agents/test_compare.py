@@ -249,12 +249,13 @@ def test_verdicts_name_the_best_classical_and_learned_policy_and_the_winner():
                _entry("c11-starts", "learned", "ppo", time=1.40, energy=60.0, seeds=[0]),
                _entry("c11-starts", "learned", "sac", success=0.9, collisions=0.1, time=1.20, seeds=[0]),
                {**_entry("delay-1", "heuristic", success=0.2, collisions=0.8), "name": "dec-continue, tuned"},
-               {**_entry("delay-1", "pd", time=1.5), "name": "pd + shield"},
+               {**_entry("delay-1", "pd", time=1.5), "name": "pd + shield", "shielded": True},
                _entry("delay-1", "learned", "ppo", success=0.5, collisions=0.5, seeds=[0])]
     rows = report.verdicts(entries).splitlines()[4:]
     assert rows[0].startswith("| c11-starts | dec-continue, tuned: 1.00 / 0.00, 1.600 s") and "| ppo: 1.00 / 0.00" in rows[0]
-    assert rows[0].endswith("| learned wins: 0.200 s faster |")
-    assert rows[1].startswith("| delay-1 | pd + shield:") and "classical wins: collisions 0.00 vs 0.50" in rows[1]
+    assert rows[0].endswith("| learned wins: 0.200 s faster | - |")
+    assert rows[1].startswith("| delay-1 | dec-continue, tuned:") and "learned wins: collisions 0.50 vs 0.80" in rows[1]
+    assert rows[1].endswith("| pd + shield: 1.00 / 0.00, 1.500 s, 70 J |")  # shielded entries apart
 
 
 def test_robustness_curves_run_every_policy_at_every_point(tmp_path, monkeypatch):

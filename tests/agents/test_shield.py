@@ -195,3 +195,27 @@ def test_shield_is_a_policy_spec_of_evaluate():
     assert policy.name == "dec-continue (d=0.06 m) + shield"
     with pytest.raises(ValueError, match="shield:SPEC"):
         make_policy("shield:", env)
+
+
+def test_a_rollout_ends_only_after_the_actuator_line_has_applied_the_policys_action():
+    """With a delay the checked action acts k steps late: the terminal test waits until the line
+    holds only the backup's actions, so an action is never accepted before its effect was simulated."""
+    from scara_gym.wrappers.shield import REST_STEPS
+
+    env = gym.make("Scara-C11-v1", action_delay=3)
+    env.reset(seed=0)
+    shield = Shield(env, None, params=None)
+    task = env.unwrapped.task
+    assert shield.certify(task.snapshot(0), task.setpoint_to_action(task.snapshot(0)["x"][:3]))
+    assert shield.model_task.outcomes["episode_steps"][0] >= 3 + REST_STEPS
+    with pytest.raises(ValueError, match="climb_margin .* must be at least wall_margin"):
+        Shield(env, None, wall_margin=0.02, climb_margin=0.01)
+
+
+def test_the_exact_model_takes_each_episodes_own_parameters():
+    env = gym.make("Scara-C11-RandomPhysics-v0")
+    shield = Shield(env, PDPolicy(env), params=None)
+    for seed in (0, 1):
+        env.reset(seed=seed)
+        shield(env.unwrapped.task.obs[0].copy())
+        assert shield.model_task.episode_params[0] == env.unwrapped.episode_params != scara_gym.DEFAULT_PARAMS
