@@ -28,6 +28,9 @@ CONFIGS = {
                     rtol=1e-6, atol=1e-8),
     # the wall drawn per episode (Scara-C11-RandomWall-v0's preset)
     "wall": dict(control_mode="pd", randomize_params="wall", randomize_target=True),
+    # starts drawn per episode (the protocol's start region), carried by the plans
+    "starts": dict(control_mode="voltage", randomize_start=True, randomize_target=True, collision="penalty",
+                   max_episode_steps=40),
     # sim-to-real actuation on the device: dead time and slew limit, clipped actions counted
     "delay-slew": dict(control_mode="pd", randomize_target=True, action_delay=2, action_rate_limit=30.0),
     "voltage-slew": dict(control_mode="voltage", collision="penalty", max_episode_steps=40, action_delay=1,
@@ -87,7 +90,7 @@ def test_the_cuda_env_is_the_cpu_env_bit_for_bit(name, autoreset_mode):
     # the episodes ended the ways the config is there for
     expected = {"pd-random": "collisions", "pd-free": "successes", "voltage": "truncations",
                 "physics": "collisions", "wall": "collisions", "delay-slew": "collisions",
-                "voltage-slew": "truncations"}[name]
+                "voltage-slew": "truncations", "starts": "truncations"}[name]
     assert counts[expected] > 0, counts
     assert np.array_equal(cpu.unwrapped.targets, gpu.unwrapped.targets)
 
@@ -261,3 +264,9 @@ def test_every_registered_id_has_the_cuda_backend(env_id):
 def test_sensor_noise_is_refused_by_name_on_the_device():
     with pytest.raises(ValueError, match="sensor_noise is not implemented on the CUDA vector env"):
         ScaraCudaVectorEnv(num_envs=2, sensor_noise={"q": 1e-3})
+
+
+def test_random_starts_with_a_delay_in_pd_mode_are_refused_on_the_device():
+    with pytest.raises(ValueError, match="randomize_start with action_delay or action_rate_limit in 'pd' mode"):
+        ScaraCudaVectorEnv(num_envs=2, randomize_start=True, action_delay=1)
+    ScaraCudaVectorEnv(num_envs=2, randomize_start=True)  # without the line: the plans carry the starts
