@@ -115,6 +115,6 @@ def test_sac_with_her_trains_on_the_goal_env_resumes_and_is_evaluated(tmp_path):
     model = training.algorithm_class("sac").load(out / "model.zip", env=training.make_envs(
         "Scara-C11-Goal-v0", {"control_mode": "pd"}, hyper, seed=0)[0])
     assert isinstance(model.replay_buffer, HerReplayBuffer)
-    rows, _ = evaluate([f"sb3:{out}"], env_id="Scara-C11-Goal-v0", randomize_target=True, episodes=2)
+    rows, _ = evaluate([f"sb3:{out}"], env_id="Scara-C11-Goal-v0", condition="random-targets", episodes=2)
     assert rows[0]["episodes"] == 2 and 0.0 <= rows[0]["success rate"] <= 1.0
     assert all(o["success"] or o["collisions"] or o["reach_time"] is None for o in rows[0]["outcomes"])
