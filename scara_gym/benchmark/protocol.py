@@ -40,7 +40,7 @@ import numpy as np
 
 from scara_gym.benchmark.episodes import run_episodes
 from scara_gym.envs.randomization import leaf_value
-from scara_gym.envs.task import JOINT_HIGH, JOINT_LOW, START_REGION
+from scara_gym.envs.task import START_REGION, draw_start
 from scara_gym.model import checks
 from scara_gym.model.params import DEFAULT_PARAMS
 from scara_gym.registration import TRAINING_ENV_ID
@@ -108,8 +108,7 @@ class Condition:
         if not self.random_starts:
             return None
         rng = np.random.default_rng((int(seed), _START_STREAM))
-        start = np.asarray(DEFAULT_PARAMS.task.start) + rng.uniform(*START_OFFSETS)
-        return {"start": tuple(np.clip(start, JOINT_LOW, JOINT_HIGH).tolist())}
+        return {"start": tuple(draw_start(rng, DEFAULT_PARAMS.task.start, START_OFFSETS).tolist())}
 
 
 def _starts_with(name: str, description: str, index: int, **kwargs) -> Condition:

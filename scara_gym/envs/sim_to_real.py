@@ -34,7 +34,6 @@ No gymnasium import here: the task object (:mod:`scara_gym.envs.task`) uses it.
 
 from __future__ import annotations
 
-import math
 from collections.abc import Mapping
 from dataclasses import dataclass
 
@@ -42,6 +41,7 @@ import numpy as np
 
 from scara_gym.envs.core import O_HEIGHT, O_TARGET_ERROR, O_TIP_X, O_TIP_Y, O_WALL
 from scara_gym.model import checks
+from scara_gym.model.dynamics import tip_position
 
 MAX_ACTION_DELAY = 100   # [control steps]
 NOISE_STD_MAX = 1e3      # [the field's unit]; beyond, every noisy value sits on a bound
@@ -150,8 +150,7 @@ def sense(obs: np.ndarray, std: np.ndarray, rng: np.random.Generator, p, obstacl
     out[:N_SENSED] += noise
     out[O_TARGET_ERROR:O_TARGET_ERROR + 3] -= noise[:3]
     q1, q2, q3 = out[0], out[1], out[2]
-    tip_x = p["link1_length"] * math.cos(q1) + p["link2_length"] * math.cos(q1 + q2)
-    tip_y = p["link1_length"] * math.sin(q1) + p["link2_length"] * math.sin(q1 + q2)
+    tip_x, tip_y, _ = tip_position(q1, q2, q3, p)
     out[O_TIP_X], out[O_TIP_Y] = tip_x, tip_y
     if obstacle:
         out[O_WALL], out[O_HEIGHT] = tip_x - p["wall_x"], q3 - p["wall_height"]

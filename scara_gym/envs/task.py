@@ -167,6 +167,11 @@ class EpisodePlan(NamedTuple):
 RESET_OPTIONS = ("target", "start", "params")
 
 
+def draw_start(rng: np.random.Generator, start: np.ndarray, region: tuple[np.ndarray, np.ndarray]) -> np.ndarray:
+    """A start drawn as ``start`` + uniform offsets in ``region`` (low, high), inside the joint range."""
+    return np.clip(np.asarray(start, dtype=float) + rng.uniform(*region), JOINT_LOW, JOINT_HIGH)
+
+
 def _start_region(value) -> tuple[np.ndarray, np.ndarray] | None:
     """randomize_start: False/None (off), True (START_REGION) or (low, high) offsets [rad, rad, m]."""
     if value is None or value is False:
@@ -375,7 +380,7 @@ class ScaraTask:
         if "start" in options:
             start = self.check_joints(options["start"], "options['start']")
         elif self.start_region is not None:
-            start = np.clip(self.default_start + rng.uniform(*self.start_region), JOINT_LOW, JOINT_HIGH)
+            start = draw_start(rng, self.default_start, self.start_region)
         else:
             start = self.default_start
         if "target" in options:

@@ -46,6 +46,7 @@ import numpy as np
 from scara_gym.envs.randomization import ParameterRanges
 from scara_gym.envs.task import OBSERVATION_LAYOUT, EpisodePlan, ScaraTask
 from scara_gym.model import checks
+from scara_gym.model.dynamics import tip_position
 from scara_gym.model.params import DEFAULT_PARAMS, ScaraParams, resolve_params
 
 Q, RATES, TARGET_ERROR = (OBSERVATION_LAYOUT[name] for name in ("q", "rate", "target_error"))
@@ -132,11 +133,6 @@ class Shield:
         self._episode = None        # (target, first model's parameters) the models' episodes hold for
         self._committed: dict = {}  # robot index -> the certified backup's set-point
 
-    @property
-    def model(self):
-        """The nominal model's task (robot 0 of the models)."""
-        return self.model_task
-
     def reset(self) -> None:
         if self.policy is not None:
             self.policy.reset()
@@ -155,7 +151,7 @@ class Shield:
         still = np.all(np.abs(obs[:, RATES]) < self.rest_rate, axis=1)
         held = np.all(np.abs(obs[:, Q][:, :2] - setpoint[:2]) < self.hold_tolerance, axis=1)
         p = task.robot_params[:len(obs)]
-        hold_x = p["link1_length"] * np.cos(setpoint[0]) + p["link2_length"] * np.cos(setpoint[0] + setpoint[1])
+        hold_x = np.array([tip_position(setpoint[0], setpoint[1], setpoint[2], record)[0] for record in p])
         hold_distance = hold_x - p["wall_x"]  # where the held angles put the tip
         beside = (np.abs(obs[:, WALL_DISTANCE]) >= self.wall_margin) & (np.abs(hold_distance) >= self.wall_margin) \
             & (np.sign(hold_distance) == np.sign(obs[:, WALL_DISTANCE]))
