@@ -261,6 +261,7 @@ def _add_compare(sub) -> None:
     p.add_argument("--pilots", action="store_true", help="also the runs tagged 'pilot' (left out by default)")
     p.add_argument("--no-robust-shield", action="store_true",
                    help="leave out PD behind the robust shield in the shifted conditions (about 4 s per episode)")
+    p.add_argument("--no-mpc", action="store_true", help="leave out the nonlinear MPC (about 10 s per episode)")
     p.set_defaults(handler=_compare)
 
 
@@ -273,7 +274,7 @@ def _compare(args, argv) -> list[dict]:
     entries, traces = compare_in_parallel(args.runs, args.conditions, args.jobs, episodes=args.episodes,
                                           include_optimal=not args.no_optimal, cache=args.cache,
                                           shielded=tuple(args.shield), pilots=args.pilots,
-                                          robust_shield=not args.no_robust_shield)
+                                          robust_shield=not args.no_robust_shield, include_mpc=not args.no_mpc)
     args.out.mkdir(parents=True, exist_ok=True)
     (args.out / "comparison.json").write_text(json.dumps({"env_id": TRAINING_ENV_ID,
                                                            "command": "scara-agents " + " ".join(argv),

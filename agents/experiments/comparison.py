@@ -9,8 +9,9 @@ drawn and fixed parameter shifts, sensor noise, actuation delay, a rate limit), 
   trigger distance tuned once on the tuning set and at 1.2 times it
   (:mod:`agents.experiments.tuning`: never re-tuned on a condition it is scored on); ``optimal``
   (the minimum-time replay, "voltage" mode) where the condition keeps the C11 start, target and
-  parameters and a solution is shipped (an open-loop replay does not see sensor noise); and
-  every learned run under ``RUNS/ENV_ID/MODE/NAME/seedN``, one entry per registered run over
+  parameters and a solution is shipped (an open-loop replay does not see sensor noise); ``mpc``
+  (the nonlinear MPC, agents.policies.mpc, "voltage" mode, its nominal model: cached like the
+  learned runs, with its solve times per control step); and every learned run under ``RUNS/ENV_ID/MODE/NAME/seedN``, one entry per registered run over
   its seeds;
 - behind scara_gym.wrappers.Shield (its model: the nominal parameters): PD and the runs named by
   ``shielded`` (default: those tagged "also-shielded"), as entries "... + shield". Runs trained
@@ -23,18 +24,31 @@ agents.experiments.report's; the acceptance targets are agents.experiments.targe
 
 from __future__ import annotations
 
+import hashlib
 import json
 import time
 from pathlib import Path
 
-from agents.experiments.evaluation import learned_episodes, learned_runs
+from agents.experiments.evaluation import (
+    cached_evaluation,
+    condition_description,
+    learned_episodes,
+    learned_runs,
+    mpc_episodes,
+)
 from agents.experiments.registry import RUNS, tagged
 from agents.experiments.statistics import entry, probability_faster, rate_text, time_scores, training_seconds
 from agents.experiments.tuning import tune_heuristic
-from agents.policies import DecHeuristic, PDPolicy
-from agents.policies.optimal import OptimalPolicy
+from agents.policies import (
+    DecHeuristic,
+    PDPolicy,
+    base as policies_base,
+    heuristic as policies_heuristic,
+    pd as policies_pd,
+)
+from agents.policies.optimal import SOLUTIONS, OptimalPolicy, policy as optimal_policy, solutions as optimal_solutions
 from scara_gym.benchmark.protocol import evaluate, get_condition
-from scara_gym.wrappers import Shield
+from scara_gym.wrappers import Shield, shield as shield_module
 
 SHIELDED = tagged("also-shielded")
 """registered runs the comparison also evaluates behind the shield by default (``--shield``)"""
@@ -46,6 +60,8 @@ ROBUST_LABEL = f"pd + robust shield ({ROBUST_RANGES!r} ranges)"
 ROBUST_NOTE = (f"scara_gym.wrappers.Shield with the nominal parameters, robust over the {ROBUST_RANGES!r} ranges "
                "(their ends and 8 draws, robust_seed 0)")
 HEURISTIC_VARIANTS = ("continue", "restart")
+CLASSICAL_SOURCES = (policies_base, policies_pd, policies_heuristic, optimal_policy, optimal_solutions, shield_module)
+"""the modules whose source a classical policy's cached evaluation digests"""
 OPTIMAL_CONDITIONS = ("c11", "sensor-noise", "sensor-noise-x5")
 """conditions where the optimal replay applies: the C11 start, target and parameters"""
 
@@ -66,14 +82,16 @@ def tuned_heuristics(verbose: bool = False) -> dict:
 def compare(runs_root: Path | None = Path("runs/baselines"), conditions: list[str] = ("c11",),
             episodes: int | None = None, include_optimal: bool = True, verbose: bool = True,
             cache: Path | None = None, shielded: tuple[str, ...] = SHIELDED, heuristics: dict | None = None,
-            pilots: bool = False, robust_shield: bool = True):
+            pilots: bool = False, robust_shield: bool = True, include_mpc: bool = True):
     """Every policy in every condition: (entries, traces per condition). episodes: per condition
-    (None: the condition's own count; the C11 episode is one). cache: a folder that keeps learned
-    runs' evaluations (learned_episodes). shielded: learned algorithms that also run behind
+    (None: the condition's own count; the C11 episode is one). cache: a folder that keeps every
+    evaluation (learned runs': learned_episodes; the classical policies' and the MPC's:
+    cached_evaluation). shielded: learned algorithms that also run behind
     scara_gym.wrappers.Shield (entries "ALGO + shield"), as PD does ("pd + shield") where any is
     given. heuristics: tuned_heuristics() (computed here where None). pilots: also the runs
     tagged "pilot" (left out by default). robust_shield: PD behind the robust shield where the
-    condition shifts the parameters. Every entry says whether a shield acts ("shielded") and for
+    condition shifts the parameters. include_mpc: the MPC's entry (its evaluations are kept in
+    ``cache`` too; "solve_time": median, p95 and worst per control step [s]). Every entry says whether a shield acts ("shielded") and for
     which parameters it is built ("shield_range": "nominal" or the robust ranges); a learned one
     names its runs' folder ("run") and carries their registry tags ("tags")."""
     entries, traces = [], {}
@@ -83,8 +101,10 @@ def compare(runs_root: Path | None = Path("runs/baselines"), conditions: list[st
         groups = {key: dirs for key, dirs in groups.items() if "pilot" not in getattr(RUNS.get(key[0]), "tags", ())}
     for name in conditions:
         started = time.perf_counter()
-        table = _ConditionTable(get_condition(name), episodes, verbose)
+        table = _ConditionTable(get_condition(name), episodes, verbose, cache)
         table.classical(heuristics, shielded, include_optimal, robust_shield)
+        if include_mpc:
+            table.mpc(cache)
         table.learned(groups, cache, shielded)
         entries += table.entries
         traces[name] = table.traces
@@ -96,8 +116,8 @@ def compare(runs_root: Path | None = Path("runs/baselines"), conditions: list[st
 class _ConditionTable:
     """The entries and first-episode traces of one condition, as they are added."""
 
-    def __init__(self, condition, episodes: int | None, verbose: bool) -> None:
-        self.condition, self.verbose = condition, verbose
+    def __init__(self, condition, episodes: int | None, verbose: bool, cache=None) -> None:
+        self.condition, self.verbose, self.cache = condition, verbose, cache
         self.episodes = 1 if condition.episodes == 1 else episodes  # the C11 episode is one episode
         self.entries: list[dict] = []
         self.traces: dict = {}
@@ -116,25 +136,35 @@ class _ConditionTable:
                   f"energy {e['energy_mean']:.1f} J", flush=True)
         return e
 
-    def run(self, factory, mode: str = "pd") -> dict:
-        return evaluate(self.condition, factory, mode, self.episodes)
+    def run(self, key: str, factory, mode: str = "pd") -> dict:
+        """A classical policy's episodes, from the cache where it keeps them (key: what names
+        the policy and its settings; the cache digests the policies' and the shield's source)."""
+        def run() -> dict:
+            result = evaluate(self.condition, factory, mode, self.episodes)
+            result.pop("condition")
+            return result
+
+        description = [key, mode, *condition_description(self.condition, self.episodes)]
+        return cached_evaluation(self.cache, "classical", CLASSICAL_SOURCES, description, run)
 
     def classical(self, heuristics: dict, shielded, include_optimal: bool, robust_shield: bool = True) -> None:
         """PD (and behind the shield: the nominal one, and the robust one where the parameters
         shift), the heuristic at its tuned distance and with the margin, the optimal replay."""
-        self.add("pd", "pd", None, "pd", [self.run(PDPolicy)], None)
-        self.add("pd" + SHIELD_SUFFIX, "pd", None, "pd", [self.run(lambda env: Shield(env, PDPolicy(env)))], None,
-                 note=SHIELD_NOTE, shielded=True)
+        self.add("pd", "pd", None, "pd", [self.run("pd", PDPolicy)], None)
+        self.add("pd" + SHIELD_SUFFIX, "pd", None, "pd", [self.run("shield:pd", lambda env: Shield(env, PDPolicy(env)))],
+                 None, note=SHIELD_NOTE, shielded=True)
         shifted = self.condition.params or self.condition.env_kwargs.get("randomize_params")
         if robust_shield and shifted:
-            runs = [self.run(lambda env: Shield(env, PDPolicy(env), robust=ROBUST_RANGES))]
+            runs = [self.run(f"robust-shield:{ROBUST_RANGES}:pd",
+                             lambda env: Shield(env, PDPolicy(env), robust=ROBUST_RANGES))]
             self.add(ROBUST_LABEL, "pd", None, "pd", runs, None, note=ROBUST_NOTE, shielded=True,
                      shield_range=ROBUST_RANGES)
         for variant, tuned in heuristics.items():
             if tuned.get("distance") is None:
                 continue
             for label, distance in (("tuned", tuned["distance"]), ("margin", tuned["margin_distance"])):
-                runs = [self.run(lambda env, d=distance, v=variant: DecHeuristic(env, v, critical_distance=d))]
+                runs = [self.run(f"dec-{variant}:{distance!r}",
+                                 lambda env, d=distance, v=variant: DecHeuristic(env, v, critical_distance=d))]
                 if variant == "continue" and label == "tuned":
                     self.reference = runs
                 self.add(f"dec-{variant}, {label} (d={distance:.4f} m)", "heuristic", None, "pd", runs, None,
@@ -142,13 +172,21 @@ class _ConditionTable:
                               f"(agents.experiments.tuning: {tuned['distance']:.4f} m)")
         if include_optimal and self.condition.name in OPTIMAL_CONDITIONS:
             try:  # the shipped solutions only: a solve takes minutes to hours
-                runs = [self.run(lambda env: OptimalPolicy(env, solve_missing=False), "voltage")]
+                shipped = hashlib.sha256(b"".join(p.read_bytes() for p in sorted(SOLUTIONS.glob("*.json")))).hexdigest()
+                runs = [self.run(f"optimal:{shipped}", lambda env: OptimalPolicy(env, solve_missing=False), "voltage")]
             except LookupError:
                 if self.verbose:
                     print(f"[{self.condition.name}] optimal: no shipped solution", flush=True)
             else:
                 self.add("optimal", "optimal", None, "voltage", runs, None,
                          note="minimum-time voltages held over the control steps (agents.policies.optimal)")
+
+    def mpc(self, cache) -> None:
+        """The nonlinear MPC with its nominal model, and its solve times."""
+        result = mpc_episodes(self.condition, self.episodes, cache)
+        e = self.add("mpc", "mpc", None, "voltage", [result], None,
+                     note="nonlinear MPC on the nominal model (agents.policies.mpc), IPOPT every control step")
+        e["solve_time"] = result["solve_time"]
 
     def learned(self, groups: dict, cache, shielded) -> None:
         """Every learned run's seeds (and behind the shield where ``shielded`` names it)."""

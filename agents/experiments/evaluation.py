@@ -4,7 +4,8 @@ learned runs' evaluations cached, and the plain evaluation table of ``scara-agen
 Policy specs: ``pd``; ``dec-continue[:d]`` and ``dec-restart[:d]`` (the seed's heuristic with
 trigger distance d [m]); ``ppo:NAME`` (a shipped model, e.g. ``ppo_pd``) or ``ppo:DIR``;
 ``sb3:DIR`` (any SB3 run: PPO, SAC, TD3); ``torchppo:DIR`` (a run of the single-file PPO);
-``optimal`` (the minimum-time reference, "voltage" mode, best on the exact ids); ``shield:SPEC``
+``optimal`` (the minimum-time reference, "voltage" mode, best on the exact ids); ``mpc`` (the
+nonlinear MPC with its defaults, "voltage" mode; agents.policies.mpc); ``shield:SPEC``
 (the policy of SPEC behind scara_gym.wrappers.Shield, e.g. ``shield:pd``).
 """
 
@@ -20,16 +21,18 @@ import numpy as np
 from agents.algorithms.sb3.policy import PPOPolicy, SB3Policy
 from agents.experiments.runs import is_finished
 from agents.files import POLICY_FILES, load_arrays, save_arrays
-from agents.policies import DecHeuristic, PDPolicy
+from agents.policies import DecHeuristic, PDPolicy, mpc as mpc_module
+from agents.policies.mpc import MPCConfig, MPCPolicy, solve_time_summary
 from agents.policies.optimal import OptimalPolicy
 from scara_gym import __version__
 from scara_gym.benchmark.protocol import Condition, evaluate as evaluate_condition, get_condition
+from scara_gym.model import symbolic as symbolic_module
 from scara_gym.registration import ENV_ID, TRAINING_ENV_ID
 from scara_gym.wrappers import Shield
 
 SHIELD_KEY = b"scara_gym.wrappers.Shield with a committed backup, 3 steps at rest, a flushed line, defaults"
 """what a shielded evaluation's cache key says of the shield (changed with the shield's rules)"""
-POLICY_SPECS = "pd, dec-continue[:d], dec-restart[:d], optimal, ppo:NAME_OR_DIR, sb3:RUN_DIR, torchppo:RUN_DIR, shield:SPEC"
+POLICY_SPECS = "pd, dec-continue[:d], dec-restart[:d], optimal, mpc, ppo:NAME_OR_DIR, sb3:RUN_DIR, torchppo:RUN_DIR, shield:SPEC"
 
 
 def make_policy(spec: str, env):
@@ -57,6 +60,10 @@ def make_policy(spec: str, env):
         return TorchPPOPolicy(env, arg)
     if kind == "optimal":
         return OptimalPolicy(env)
+    if kind == "mpc":
+        if arg:
+            raise ValueError("the MPC is given as mpc (its defaults; agents.policies.mpc.MPCConfig sets the rest)")
+        return MPCPolicy(env)
     raise ValueError(f"unknown policy {spec!r}; use {POLICY_SPECS}")
 
 
@@ -98,6 +105,60 @@ def learned_episodes(run_dir: Path, condition: Condition, mode: str, episodes: i
         return _from_arrays(load_arrays(path))
     result = run()
     save_arrays(path, _to_arrays(result))  # whole or not at all: a stopped comparison leaves no half entry
+    return result
+
+
+def cached_evaluation(cache: Path | None, prefix: str, sources, description, run) -> dict:
+    """``run()``'s result (an evaluation's per-episode arrays), from ``cache/PREFIX-KEY.npz``
+    where it is kept, else kept there: KEY digests the source of the ``sources`` modules, the
+    JSON of ``description`` (what is evaluated, the condition, the seeds) and the environment
+    id and package version (which stand for the environments' code, as for learned runs)."""
+    if cache is None:
+        return run()
+    digest = hashlib.sha256()
+    for module in sources:
+        digest.update(Path(module.__file__).read_bytes())
+    digest.update(json.dumps([description, TRAINING_ENV_ID, __version__], sort_keys=True, default=str).encode())
+    path = Path(cache) / f"{prefix}-{digest.hexdigest()[:32]}.npz"
+    if path.exists():
+        return _from_arrays(load_arrays(path))
+    result = run()
+    save_arrays(path, _to_arrays(result))
+    return result
+
+
+def condition_description(condition: Condition, episodes: int | None) -> list:
+    """What a cache key says of a condition: all its fields and the seeds evaluated."""
+    return [dataclasses.asdict(condition), condition.seeds(episodes)]
+
+
+MPC_SOURCES = (mpc_module, symbolic_module)
+"""the modules whose source an MPC evaluation's cache key digests (beside its configuration)"""
+
+
+def mpc_episodes(condition: Condition, episodes: int | None = None, cache: Path | None = None,
+                 config: MPCConfig | None = None) -> dict:
+    """The MPC's episodes in a protocol condition ("voltage" mode), with every solve's time
+    ("solve_times" [s]) and their summary ("solve_time"), from ``cache`` where it holds them
+    (cached_evaluation: the MPC's and the symbolic model's source, its configuration, the
+    condition and seeds). config: the MPC's (None: its defaults)."""
+    config = MPCConfig() if config is None else config
+    policies: list[MPCPolicy] = []
+
+    def run() -> dict:
+        def factory(env):
+            policies.append(MPCPolicy(env, config))
+            return policies[-1]
+
+        result = evaluate_condition(condition, factory, "voltage", episodes)
+        result.pop("condition")
+        result["solve_times"] = np.asarray(policies[0].solve_times)
+        result["solver_failures"] = np.asarray(policies[0].failures)
+        return result
+
+    description = ["mpc", dataclasses.asdict(config), *condition_description(condition, episodes)]
+    result = cached_evaluation(cache, "mpc", MPC_SOURCES, description, run)
+    result["solve_time"] = {**solve_time_summary(result["solve_times"]), "failures": int(result["solver_failures"])}
     return result
 
 

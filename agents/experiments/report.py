@@ -116,7 +116,7 @@ def comparison_markdown(entries: list[dict]) -> str:
             + condition_tables(entries))
 
 
-CLASSICAL_KINDS = ("pd", "heuristic")
+CLASSICAL_KINDS = ("pd", "heuristic", "mpc")
 """the kinds a verdict counts as classical controllers (the optimal open-loop replay is a reference, not one)"""
 
 
@@ -220,6 +220,11 @@ def condition_tables(entries: list[dict]) -> str:
             lines.append(f"| {e['name']} | {e['kind']} | {e['control_mode']} | {seeds} | {e['episodes']} | "
                          f"{rate_text(e['success_rate'])} | {rate_text(e['collision_rate'])} | {e['time_iqm']:.4f} "
                          f"[{e['time_ci'][0]:.4f}, {e['time_ci'][1]:.4f}] | {e['energy_mean']:.1f} | {p_text} |")
+        for e in (e for e in entries if e["condition"] == name and e.get("solve_time")):
+            t = e["solve_time"]
+            lines += ["", f"{e['name']}: solve time per control step median {1e3 * t['median']:.1f} ms, 95th percentile "
+                          f"{1e3 * t['p95']:.1f} ms, worst {1e3 * t['worst']:.1f} ms ({t['solves']} solves, "
+                          f"{t['failures']} not converged)"]
         per_seed = [e for e in entries if e["condition"] == name and e.get("per_seed")]
         if per_seed:
             lines += ["", "Every seed (success, collisions, mean time of the successful episodes, energy):", ""]

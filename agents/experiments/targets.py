@@ -9,6 +9,10 @@ MINIMUM_TIME_BOUND = 1.2217
 SHIELD_RANGE = ("c11", "c11-starts", "random-targets", "sensor-noise", "sensor-noise-x5", "delay-1", "rate-limit-20")
 """the protocol conditions inside the nominal shield's range (its model has the nominal parameters); a
 robust shield's range holds every condition of the protocol"""
+MPC_CLEAN = ("c11-starts", "random-targets", "load-x2", "wall-closer", "current-limits-15", "resistance+20")
+"""the conditions where the MPC (its nominal model) must succeed in every episode without a collision"""
+MPC_SOLVE_BUDGET = 0.010
+"""[s] the median solve time per control step the MPC aims at (real time at 100 Hz)"""
 TRAINING_BUDGET = 1800.0
 """[s] per training run on 2 CPU cores"""
 
@@ -28,6 +32,39 @@ def _best_learned(learned: list[dict], success: float) -> dict | None:
         return None
     clean = [e for e in learned if _clean_every_seed(e, success)]
     return min(clean or learned, key=lambda e: e["time_iqm"])
+
+
+def _mpc_checks(entries, check, summary) -> None:
+    """The MPC's targets: near the optimum on the C11 episode, clean where its model holds or
+    is off by a fixed shift, and its solve time."""
+    mpc, optimal = _find(entries, "c11", "mpc"), _find(entries, "c11", "optimal")
+    text = "MPC on the C11 episode: success, no collision, time within 3 % of the optimal reference's"
+    if mpc and optimal:
+        e, bound = mpc[0], 1.03 * optimal[0]["time_iqm"]
+        check(text, e["success_rate"] == 1.0 and e["collision_rate"] == 0.0 and e["time_iqm"] <= bound,
+              summary(e) + f" (optimal {optimal[0]['time_iqm']:.4f} s: {100 * (e['time_iqm'] / optimal[0]['time_iqm'] - 1):+.2f} %)")
+    else:
+        check(text, None, "not evaluated")
+    found = [e for name in MPC_CLEAN for e in _find(entries, name, "mpc")]
+    text = f"MPC with its nominal model: 100 % success, 0 collisions in {', '.join(MPC_CLEAN)}"
+    if found:
+        misses = [e for e in found if e["success_rate"] < 1.0 or e["collision_rate"] > 0]
+        check(text, len(found) == len(MPC_CLEAN) and not misses,
+              "; ".join(f"{e['condition']}: success {rate_text(e['success_rate'])}, collisions "
+                        f"{rate_text(e['collision_rate'])}" for e in misses)
+              or f"{len(found)} of {len(MPC_CLEAN)} conditions evaluated, all clean")
+    else:
+        check(text, None, "not evaluated")
+    timed = [e for e in entries if e["kind"] == "mpc" and e.get("solve_time")]
+    text = f"MPC: median solve time per control step under {1e3 * MPC_SOLVE_BUDGET:.0f} ms"
+    if timed:
+        worst = max(timed, key=lambda e: e["solve_time"]["median"])
+        t = worst["solve_time"]
+        check(text, t["median"] < MPC_SOLVE_BUDGET,
+              f"slowest median: {1e3 * t['median']:.1f} ms ({worst['condition']}; 95th percentile "
+              f"{1e3 * t['p95']:.1f} ms, worst {1e3 * t['worst']:.1f} ms)")
+    else:
+        check(text, None, "not evaluated")
 
 
 def target_checks(entries: list[dict]) -> list[dict]:
@@ -50,6 +87,7 @@ def target_checks(entries: list[dict]) -> list[dict]:
               summary(e) + f" ({100 * (e['time_iqm'] / MINIMUM_TIME_BOUND - 1):+.2f} % over the bound)")
     else:
         check(text, None, "not evaluated")
+    _mpc_checks(entries, check, summary)
     shielded = [e for e in entries if e.get("shielded")
                 and (e["condition"] in SHIELD_RANGE or e.get("shield_range") not in (None, "nominal"))]
     text = ("shield: 0 collisions for every policy behind it in every protocol condition inside its range "

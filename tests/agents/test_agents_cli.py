@@ -83,7 +83,7 @@ def test_train_campaign_and_compare_run_tiny(tmp_path):
     published = tmp_path / "published"
     assert len(run(["campaign", "torch-ppo", "--seeds", "0", "--runs", str(runs), "--publish", str(published)])) == 1
     entries = run(["compare", "--runs", str(published), "--conditions", "wall-closer", "--episodes", "2",
-                   "--no-optimal", "--shield", "--no-robust-shield", "--out", str(tmp_path / "cmp")])
+                   "--no-optimal", "--shield", "--no-robust-shield", "--no-mpc", "--out", str(tmp_path / "cmp")])
     assert [e["name"] for e in entries][-1] == "torch-ppo" and entries[-1]["tags"] == ["standard"]
     assert (tmp_path / "cmp" / "comparison.json").exists()
     summary = run(["torch-ppo", "--num-envs", "2", "--num-steps", "8", "--num-minibatches", "1", "--update-epochs",

@@ -76,7 +76,7 @@ def test_comparison_command_writes_every_policy(tmp_path):
     entries, traces = comparison.compare(published, ["c11"], episodes=2, verbose=False, heuristics=HEURISTICS,
                                          shielded=("torch-ppo",))
     names = [e["name"] for e in entries]
-    assert names[:2] == ["pd", "pd + shield"] and "optimal" in names
+    assert names[:2] == ["pd", "pd + shield"] and "optimal" in names and "mpc" in names
     assert names[-3:] == ["td3", "torch-ppo", "torch-ppo + shield"]
     assert entries[-1]["seeds"] == [3] and entries[-1]["kind"] == "learned"
     assert entries[-1]["algorithm"] == "torch-ppo + shield" and entries[-1]["collision_rate"] == 0.0
@@ -98,6 +98,9 @@ def test_comparison_command_writes_every_policy(tmp_path):
                                         "comparison_learning_curves.png"}
     table = report.comparison_markdown(entries)
     assert "| optimal | optimal | voltage |" in table and "seed 1:" in table
+    assert "| mpc | mpc | voltage |" in table and "mpc: solve time per control step median" in table
+    mpc = entries[names.index("mpc")]
+    assert mpc["success_rate"] == 1.0 and mpc["collision_rate"] == 0.0 and mpc["solve_time"]["solves"] > 100
     assert table.startswith("#### Targets") and "| optimal reference on the C11 target" in table
     assert "| policy | c11 |\n" in table and "| pd | - (0.00 / 1.00) |\n" in table  # the overview
     assert f"| optimal | {optimal['time_iqm']:.3f} s |\n" in table
@@ -107,7 +110,7 @@ def test_comparison_command_writes_every_policy(tmp_path):
                     published / "Scara-C11-v1" / "pd" / "torch-ppo-residual-frugal")
     assert "pilot" in registry.RUNS["torch-ppo-residual-frugal"].tags
     kwargs = dict(episodes=1, verbose=False, heuristics=HEURISTICS, shielded=(), include_optimal=False,
-                  robust_shield=False)
+                  robust_shield=False, include_mpc=False)
     names = [e["name"] for e in comparison.compare(published, ["c11"], **kwargs)[0]]
     assert "torch-ppo-residual-frugal" not in names and "torch-ppo" in names
     names = [e["name"] for e in comparison.compare(published, ["c11"], pilots=True, **kwargs)[0]]
@@ -118,7 +121,7 @@ def test_a_condition_without_a_shipped_optimal_solution_is_compared_without_it(m
     import agents.policies.optimal.policy
 
     monkeypatch.setattr(agents.policies.optimal.policy, "cached_solution", lambda *args, **kwargs: None)
-    entries, _ = comparison.compare(None, ["c11"], episodes=2, verbose=True, heuristics=HEURISTICS)
+    entries, _ = comparison.compare(None, ["c11"], episodes=2, verbose=True, heuristics=HEURISTICS, include_mpc=False)
     assert [e["kind"] for e in entries] == ["pd", "pd"] + ["heuristic"] * 4  # no solve of minutes inside
     assert "[c11] optimal: no shipped solution" in capsys.readouterr().out
 
@@ -184,6 +187,30 @@ def test_target_checks_say_met_or_the_number_reached():
     assert [c["met"] for c in slow[1:]] == [None] * (len(slow) - 1)
 
 
+def test_the_mpc_targets_name_the_conditions_it_misses_and_its_solve_time():
+    from agents.experiments.targets import MPC_CLEAN
+
+    timed = {"median": 0.004, "p95": 0.02, "worst": 0.05, "solves": 100, "failures": 0}
+    entries = [_entry("c11", "optimal", time=1.2241), {**_entry("c11", "mpc", time=1.25), "solve_time": timed}]
+    entries += [{**_entry(name, "mpc"), "solve_time": timed} for name in MPC_CLEAN]
+    checks = {c["target"].split(":")[0]: c for c in target_checks(entries)}
+    near = checks["MPC on the C11 episode"]
+    assert near["met"] is True and "+2.12 %" in near["reached"]
+    clean = checks["MPC with its nominal model"]
+    assert clean["met"] is True and f"{len(MPC_CLEAN)} of {len(MPC_CLEAN)}" in clean["reached"]
+    assert checks["MPC"]["met"] is True and "4.0 ms" in checks["MPC"]["reached"]
+    entries[1]["time_iqm"] = 1.27  # 3.7 % over the optimum
+    entries[3]["collision_rate"] = 0.01
+    entries[4]["solve_time"] = {**timed, "median": 0.012}
+    checks = {c["target"].split(":")[0]: c for c in target_checks(entries)}
+    assert checks["MPC on the C11 episode"]["met"] is False
+    clean = checks["MPC with its nominal model"]
+    assert clean["met"] is False and clean["reached"] == f"{MPC_CLEAN[1]}: success 1.00, collisions 0.01"
+    assert checks["MPC"]["met"] is False and checks["MPC"]["reached"].startswith(f"slowest median: 12.0 ms ({MPC_CLEAN[2]}")
+    missing = {c["target"].split(":")[0]: c for c in target_checks(entries[:2])}["MPC with its nominal model"]
+    assert missing["met"] is None
+
+
 def test_a_cached_evaluation_is_reused_only_for_the_same_model_condition_and_episodes(tmp_path, monkeypatch):
     from agents.algorithms.torch_ppo import Config, train as train_torch_ppo
 
@@ -218,7 +245,7 @@ def test_a_cached_evaluation_is_reused_only_for_the_same_model_condition_and_epi
 
 
 def test_conditions_compared_in_parallel_give_the_sequential_entries():
-    kwargs = dict(episodes=2, verbose=False, heuristics=HEURISTICS, include_optimal=False)
+    kwargs = dict(episodes=2, verbose=False, heuristics=HEURISTICS, include_optimal=False, include_mpc=False)
     sequential, _ = comparison.compare(None, ["c11", "wall-closer"], **kwargs)
     parallel, traces = comparison.compare_in_parallel(None, ["c11", "wall-closer"], 2, **kwargs)
     assert parallel == sequential and set(traces) == {"c11", "wall-closer"}
@@ -288,3 +315,18 @@ def test_the_readme_headline_table_is_the_published_comparisons_overview():
     assert start in readme and end in readme
     table = readme[readme.index(start) + len(start):readme.index(end)]
     assert table == report.overview(entries, report.HEADLINE_CONDITIONS)
+
+
+def test_the_classical_rows_come_back_from_the_cache(tmp_path, monkeypatch):
+    kwargs = dict(episodes=2, verbose=False, heuristics=HEURISTICS, include_mpc=False, cache=tmp_path)
+    first, _ = comparison.compare(None, ["c11-starts"], **kwargs)
+    assert len(list(tmp_path.glob("classical-*.npz"))) == len(first) == 6  # pd, pd + shield, 4 heuristics
+
+    def must_not_run(*args, **kwargs):
+        raise AssertionError("evaluated again")
+
+    monkeypatch.setattr(comparison, "evaluate", must_not_run)
+    again, _ = comparison.compare(None, ["c11-starts"], **kwargs)
+    assert again == first
+    with pytest.raises(AssertionError, match="evaluated again"):  # other seeds: another key
+        comparison.compare(None, ["c11-starts"], **{**kwargs, "episodes": 3})

@@ -9,35 +9,9 @@ import pytest
 import scara_gym  # noqa: F401
 from agents.policies import run_episode
 from agents.policies.optimal import SOLUTIONS, OptimalPolicy, cached_solution, reference_snapshots, replay, replaying
-from scara_gym.model import records as R
-from scara_gym.model.dynamics import derivative
 from scara_gym.model.params import DEFAULT_PARAMS
 
 SPEC_BOUND = 1.2217  # s, the spec's minimum time under the environment's rules (continuous time)
-
-
-def test_casadi_model_equals_the_package_derivative():
-    pytest.importorskip("casadi")
-    from agents.policies.optimal.model import casadi_model
-
-    f, tip_x = casadi_model(DEFAULT_PARAMS)
-    p = DEFAULT_PARAMS.to_record()
-    config = np.zeros(1, dtype=R.CONFIG)[0]
-    config["control"], config["form"] = R.CONTROL_VOLTAGE, R.FORM_EXPLICIT
-    rng = np.random.default_rng(3)
-    for _ in range(50):
-        x = np.concatenate([rng.uniform(-3, 3, 2), rng.uniform(0, 0.4, 1), rng.uniform(-8, 8, 2),
-                            rng.uniform(-0.5, 0.5, 1), rng.uniform(-1, 1, 3) * p["current_limit"], [0.0]])
-        fraction = rng.uniform(-1, 1, 3)
-        robot = np.zeros(1, dtype=R.ROBOT)[0]
-        robot["command"] = fraction
-        out, volts = np.zeros(R.N_STATE), np.zeros(3)
-        derivative(x, robot, p, config, out, volts)
-        expected = out[:9]
-        got = np.array(f(x[:9], fraction * p["voltage_limit"])).ravel()
-        assert np.allclose(got, expected, rtol=1e-12, atol=1e-9 * np.abs(expected).max())
-        tip = p["link1_length"] * np.cos(x[0]) + p["link2_length"] * np.cos(x[0] + x[1])
-        assert float(tip_x(x[:9])) == pytest.approx(tip, abs=1e-15)
 
 
 def test_shipped_solution_replays_in_the_environment():

@@ -1,6 +1,6 @@
 """The optimal reference: the minimum-time voltages the physics allows, by direct collocation.
 
-- :mod:`~agents.policies.optimal.model`: the C11 model in CasADi;
+- the model: :mod:`scara_gym.model.symbolic` (the CasADi twin of the compiled dynamics);
 - :mod:`~agents.policies.optimal.transcription`: the two minimum-time problems (held and free
   voltages) and their solver;
 - :mod:`~agents.policies.optimal.solutions`: the shipped solutions;

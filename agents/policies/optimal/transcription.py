@@ -31,14 +31,15 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass
+from types import SimpleNamespace
 
 import gymnasium as gym
 import numpy as np
 
 from agents.policies.heuristic import DecHeuristic
-from agents.policies.optimal.model import casadi_model, param_values
 from scara_gym import DEFAULT_PARAMS, ScaraParams
 from scara_gym.envs import OBSERVATION_LAYOUT
+from scara_gym.model.symbolic import symbolic_model
 from scara_gym.registration import TRAINING_ENV_ID
 
 PHASES = ("A", "B", "C")  # not critical, critical (widened), above the wall
@@ -61,6 +62,13 @@ class CollocationConfig:
     """final |q_i - q^_i| <= accuracy - band_margin (rad, m)"""
     ipopt_tol: float = 1e-8
     max_iter: int = 3000
+
+
+def param_values(params: ScaraParams) -> SimpleNamespace:
+    """The PARAMS record's fields as attributes (floats and arrays)."""
+    record = params.to_record()
+    return SimpleNamespace(**{name: (float(record[name]) if np.ndim(record[name]) == 0 else np.array(record[name]))
+                              for name in record.dtype.names})
 
 
 def radau_coefficients(degree: int = 3):
@@ -144,7 +152,11 @@ def solve(problem: str = "held", start=(0.0, 0.0, 0.0), target=(2.0, 2.0, 0.3),
     params = params.replace({"task.start": tuple(map(float, start)), "task.target": tuple(map(float, target))})
     p = param_values(params)
     guess = guess or heuristic_guess(params)
-    f, tip_x = casadi_model(params)
+    model = symbolic_model(params, control="voltage")
+    f = model.free  # currents free: the constraints below keep them inside their limits
+
+    state = ca.SX.sym("x", 9)
+    tip_x = ca.Function("tip_x", [state], [model.tip(state[:3])[0]])
     phases, controls, structure = _layout(problem, config, guess["times"])
     n_el = len(phases)
     degree = 3
