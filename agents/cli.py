@@ -192,12 +192,9 @@ def _torch_ppo(args, argv) -> dict:
         value = getattr(args, f.name)
         if value is not None:
             values[f.name] = value if isinstance(value, bool) else _config_value(f, value)
-    config = Config(**values)
+    config = Config(**values)  # every field checked (Config.__post_init__)
     if args.resume and not (Path(config.out) / "checkpoint.pt").exists():
         raise UserError(f"--resume: {config.out} holds no checkpoint.pt to resume from")
-    for name in ("num_envs", "num_steps", "total_timesteps", "num_minibatches", "update_epochs", "hidden_size",
-                 "checkpoint_every"):
-        _positive("--" + name.replace("_", "-"), getattr(config, name))
     summary = train(config, resume=args.resume)
     print(json.dumps(summary, indent=2))
     return summary
@@ -336,6 +333,8 @@ def _add_sweep(sub) -> None:
 
 
 def _sweep(args, argv) -> list[dict]:
+    if any(seed < 0 for seed in args.seeds):
+        raise UserError(f"--seeds must be integers >= 0, got {args.seeds}")
     _positive("--episodes", args.episodes)
     _positive("--total-timesteps", args.total_timesteps)
     _positive("--max-concurrent", args.max_concurrent)
@@ -460,7 +459,7 @@ def run(argv: list[str] | None = None):
         warnings.filterwarnings("ignore", message=r".*Scara-C11-v[01] is out of date", category=DeprecationWarning)
         try:
             return args.handler(args, argv)
-        except (UserError, ValueError, FileNotFoundError, KeyError, LookupError, RunLocked) as error:
+        except (UserError, ValueError, TypeError, FileNotFoundError, KeyError, LookupError, RunLocked) as error:
             if args.debug:
                 raise
             message = error.args[0] if isinstance(error, KeyError) and error.args else error

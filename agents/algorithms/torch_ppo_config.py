@@ -6,7 +6,11 @@ from __future__ import annotations
 import dataclasses
 from dataclasses import dataclass, field
 
-from scara_gym.registration import TRAINING_ENV_ID
+from scara_gym.envs.randomization import PRESETS
+from scara_gym.model import checks
+from scara_gym.registration import ENV_IDS, TRAINING_ENV_ID
+
+INF = float("inf")
 
 
 @dataclass
@@ -55,6 +59,41 @@ class Config:
     demo_bc_decay: float = 1.0     # that weight's factor per update (DAPG's decay)
     demo_bc_pretrain: int = 0      # Adam steps on the cloning term alone before the first rollout
     out: str = "runs/torch_ppo"
+
+    def __post_init__(self) -> None:
+        """Every field checked before anything starts: a mistake names the field and what it allows."""
+        checks.choice("env_id", self.env_id, ENV_IDS)
+        checks.choice("control_mode", self.control_mode, ("pd", "voltage"))
+        checks.choice("device", self.device, ("cpu", "cuda"))
+        for name in ("randomize_target", "randomize_start", "anneal_lr", "normalize_reward", "compile", "shield"):
+            checks.flag(name, getattr(self, name))
+        if self.randomize_params is not None:
+            checks.choice("randomize_params", self.randomize_params, sorted(PRESETS))
+        if not isinstance(self.reward_weights, dict):
+            raise TypeError(f"reward_weights must be a dict of name -> number, got {self.reward_weights!r}")
+        for name, value in self.reward_weights.items():
+            checks.real(f"reward_weights[{name!r}]", value)
+        if self.residual_scale is not None:
+            self.residual_scale = tuple(float(x) for x in checks.real_array(
+                "residual_scale", self.residual_scale, (3,), low=1e-12, high=1e6, range_text="every entry > 0"))
+        for name, low, high in (("seed", 0, None), ("num_envs", 1, None), ("num_steps", 1, None),
+                                ("total_timesteps", 1, None), ("num_minibatches", 1, None), ("update_epochs", 1, None),
+                                ("hidden_size", 1, None), ("env_threads", 1, None), ("torch_threads", 0, None),
+                                ("checkpoint_every", 1, None), ("demo_bc_pretrain", 0, None)):
+            checks.integer(name, getattr(self, name), low, high)
+        if self.batch_size % self.num_minibatches:
+            raise ValueError(f"num_minibatches must divide the batch num_envs * num_steps = {self.batch_size}, "
+                             f"got {self.num_minibatches}")
+        for name, low, high, low_open in (
+                ("learning_rate", 0.0, 1.0, False), ("gamma", 0.0, 1.0, True), ("gae_lambda", 0.0, 1.0, True),
+                ("clip_coef", 0.0, INF, True), ("ent_coef", 0.0, INF, False), ("vf_coef", 0.0, INF, False),
+                ("max_grad_norm", 0.0, INF, True), ("clip_obs", 0.0, INF, True), ("init_log_std", -20.0, 5.0, False),
+                ("sensor_noise", 0.0, 1e3, False), ("residual_deadzone", 0.0, 1.0, False),
+                ("demo_resets", 0.0, 1.0, False), ("demo_wall_margin", 0.0, 0.05, False),
+                ("target_replay", 0.0, 1.0, False), ("demo_bc", 0.0, INF, False), ("demo_bc_decay", 0.0, 1.0, True)):
+            checks.real(name, getattr(self, name), low, high, low_open=low_open)
+        if not isinstance(self.out, str) or not self.out:
+            raise ValueError(f"out must be a folder path, got {self.out!r}")
 
     @property
     def batch_size(self) -> int:

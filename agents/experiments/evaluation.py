@@ -45,7 +45,10 @@ def make_policy(spec: str, env):
     if kind == "pd":
         return PDPolicy(env)
     if kind in ("dec-continue", "dec-restart"):
-        distance = float(arg) if arg else 0.06
+        try:
+            distance = float(arg) if arg else 0.06
+        except ValueError:
+            raise ValueError(f"{kind}:d takes a trigger distance d in metres, got {arg!r}") from None
         return DecHeuristic(env, variant=kind.split("-")[1], critical_distance=distance)
     if kind in ("ppo", "sb3", "torchppo") and not arg:
         raise ValueError(f"{kind} policies are given as {kind}:" + ("NAME (shipped) or ppo:MODEL_DIR" if kind == "ppo"

@@ -101,10 +101,11 @@ def _train_torch_ppo(run: RunSpec, out: Path, seed: int, env_id: str, control_mo
         fields["total_timesteps"] = total_timesteps
     base = out.parent.parent / run.base / out.name if run.base is not None else None
     if base is not None:
-        train_run(run.base, base, seed, env_id, control_mode, total_timesteps)
         fields["init_from"] = str(base)
     config = Config.from_dict({**fields, "env_id": env_id, "control_mode": control_mode, "seed": seed,
-                               "torch_threads": 1, "out": str(out)})
+                               "torch_threads": 1, "out": str(out)})  # checked before anything trains
+    if base is not None:
+        train_run(run.base, base, seed, env_id, control_mode, total_timesteps)
     train(config, resume=True)
     if base is not None:
         record = json.loads((out / "config.json").read_text())

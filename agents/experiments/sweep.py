@@ -32,6 +32,8 @@ from pathlib import Path
 
 import numpy as np
 
+from agents.algorithms.sb3.hyperparams import check_hyperparams
+from agents.algorithms.torch_ppo_config import Config
 from agents.experiments.evaluation import TASK_KWARGS, learned_policy
 from agents.experiments.registry import spec
 from agents.experiments.report import condition_tables
@@ -76,7 +78,12 @@ def point_hyperparams(algo: str, env_id: str, control_mode: str, point: dict) ->
     if unknown:
         raise ValueError(f"--grid names {unknown} that {algo}'s hyperparameters for {env_id}/{control_mode} do not "
                          f"have; they are {sorted(hyper)}")
-    return {**hyper, **point}
+    merged = {**hyper, **point}
+    if spec(algo).trainer == "torch-ppo":  # the values checked too, before any trial starts
+        Config.from_dict({**merged, "env_id": env_id, "control_mode": control_mode})
+    else:
+        check_hyperparams(dict(merged))
+    return merged
 
 
 PLAIN_NAME = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")

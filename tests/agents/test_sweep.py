@@ -22,9 +22,9 @@ def test_grid_parsing_and_tags():
 
 def test_a_two_trial_local_sweep_reports_the_trial_that_trains_and_the_one_that_fails(tmp_path):
     """Two grid points on a local Ray runtime: one trains and is evaluated; the other fails
-    (SB3 refuses batch_size 0), is retried once, and is reported, not lost."""
+    (SB3 refuses batch_size 1, which the grid check lets pass), is retried once, and is reported, not lost."""
     entries = sweep.run_sweep("ppo", "Scara-C11-v1", "pd", seeds=[0],
-                              grid={"n_steps": [64], "batch_size": [64, 0], "n_epochs": [1], "n_envs": [1]},
+                              grid={"n_steps": [64], "batch_size": [64, 1], "n_epochs": [1], "n_envs": [1]},
                               out=tmp_path, episodes=2, total_timesteps=64, max_failures=1, num_cpus=2)
     assert [e["hyperparameters"]["batch_size"] for e in entries] == [64]
     good = entries[0]
@@ -38,7 +38,7 @@ def test_a_two_trial_local_sweep_reports_the_trial_that_trains_and_the_one_that_
     written = json.loads((tmp_path / "sweep.json").read_text())
     assert written["policies"] == json.loads(json.dumps(entries))
     (failure,) = written["failed"]
-    assert failure["point"]["batch_size"] == 0 and failure["attempts"] == 2
+    assert failure["point"]["batch_size"] == 1 and failure["attempts"] == 2
     assert "batch_size" in failure["error"]
     table = (tmp_path / "sweep.md").read_text()
     assert "| ppo batch_size=64_n_envs=1_n_epochs=1_n_steps=64 | learned | pd | 0 | 2 |" in table

@@ -213,7 +213,7 @@ def test_demo_resets_start_episodes_on_the_reference_path_and_training_uses_them
     assert moved[:, -1].max() < 1.0  # time_left: no robot at the start
     none = DemoResets(envs, Config(num_envs=8, demo_resets=0.0))
     assert np.array_equal(none(obs.copy(), range(8)), obs)
-    with pytest.raises(ValueError, match=r"demo_resets must be in \[0, 1\]"):
+    with pytest.raises(ValueError, match=r"demo_resets must be .*in \[0, 1\]"):
         DemoResets(envs, Config(demo_resets=1.5))
     with pytest.raises(ValueError, match="without randomize_target"):
         DemoResets(envs, Config(demo_resets=0.5, randomize_target=True))
@@ -249,7 +249,7 @@ def test_target_replay_gives_new_episodes_the_failed_targets_until_they_succeed(
     assert len(replay.failed) == 2 and np.array_equal(targets()[1], first[1])
     ended([1], no, no)  # failing again on a replayed target keeps one entry of it
     assert len(replay.failed) == 2
-    with pytest.raises(ValueError, match=r"target_replay must be in \[0, 1\]"):
+    with pytest.raises(ValueError, match=r"target_replay must be .*in \[0, 1\]"):
         TargetReplay(envs, Config(randomize_target=True, target_replay=2.0))
     with pytest.raises(ValueError, match="randomize_target=True"):
         TargetReplay(envs, Config(target_replay=0.5))
@@ -343,9 +343,9 @@ def test_demo_cloning_starts_the_policy_on_the_reference_and_checks_its_argument
     train(config)
     saved = torch.load(tmp_path / "run" / "model.pt", weights_only=False)["state_dict"]
     assert saved["actor_logstd"].max() < -0.9  # init_log_std, moved by two small updates at most
-    for bad, match in ((dict(demo_bc=-1.0), "demo_bc must be >= 0"), (dict(demo_bc_decay=0.0), "demo_bc_decay"),
+    for bad, match in ((dict(demo_bc=-1.0), "demo_bc must be .*>= 0"), (dict(demo_bc_decay=0.0), "demo_bc_decay"),
                        (dict(control_mode="pd"), "control_mode='voltage'"), (dict(residual_scale=None), "residual_scale"),
                        (dict(randomize_target=True), "randomize_target")):
-        wrong = Config(**{**dataclasses.asdict(config), **bad})
-        with pytest.raises(ValueError, match=match):
+        with pytest.raises(ValueError, match=match):  # the Config refuses what it can tell alone
+            wrong = Config(**{**dataclasses.asdict(config), **bad})
             DemoCloning(make_env(wrong), wrong, residual_mapping(wrong, make_env(wrong).unwrapped.task))

@@ -9,7 +9,19 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from scara_gym.model import checks
 from scara_gym.registration import TRAINING_ENV_ID
+
+INTEGERS = {"n_timesteps": 1, "n_envs": 1, "env_threads": 1, "torch_threads": 0, "n_steps": 1, "batch_size": 1,
+            "n_epochs": 1, "buffer_size": 1, "learning_starts": 0, "gradient_steps": 1, "eval_freq": 1,
+            "eval_episodes": 1, "snapshot_freq": 1, "checkpoint_freq": 1, "policy_delay": 1, "n_sampled_goal": 1}
+"""integer hyperparameters and their least value"""
+REALS = {"learning_rate": (0.0, 1.0, True), "gamma": (0.0, 1.0, True), "gae_lambda": (0.0, 1.0, True),
+         "tau": (0.0, 1.0, True), "clip_range": (0.0, 10.0, True), "vf_coef": (0.0, 1e6, False),
+         "max_grad_norm": (0.0, 1e6, True), "noise_std": (0.0, 10.0, False), "log_std_init": (-20.0, 5.0, False),
+         "target_policy_noise": (0.0, 10.0, False), "target_noise_clip": (0.0, 10.0, False),
+         "residual_deadzone": (0.0, 1.0, False)}
+"""real hyperparameters: (low, high, low open)"""
 
 HYPERPARAMS = Path(__file__).with_name("hyperparams")
 FILES = {"ppo": "ppo.yml", "sac": "sac.yml", "td3": "td3.yml", "ppo-residual": "ppo_residual.yml"}
@@ -33,3 +45,24 @@ def load_hyperparams(recipe: str, env_id: str = TRAINING_ENV_ID, control_mode: s
     if randomize_target and f"{key}-random" in table[env_id]:
         key = f"{key}-random"
     return dict(table[env_id][key])
+
+
+def check_hyperparams(hyper: dict) -> dict:
+    """A block's values checked before anything starts (budgets and sizes >= their least value,
+    finite rates in range, networks of positive widths); a mistake names the entry."""
+    for name, low in INTEGERS.items():
+        if name in hyper:
+            checks.integer(name, hyper[name], low)
+    for name, (low, high, low_open) in REALS.items():
+        if name in hyper:
+            checks.real(name, hyper[name], low, high, low_open=low_open)
+    if "train_freq" in hyper and not isinstance(hyper["train_freq"], list):
+        checks.integer("train_freq", hyper["train_freq"], 1)
+    ent = hyper.get("ent_coef")
+    if ent is not None and not (isinstance(ent, str) and ent.startswith("auto")):
+        checks.real("ent_coef", ent, 0.0, 1e6)
+    arch = hyper.get("net_arch")
+    if arch is not None and (not isinstance(arch, list) or not arch
+                             or not all(isinstance(w, int) and not isinstance(w, bool) and w >= 1 for w in arch)):
+        raise ValueError(f"net_arch must be a list of layer widths >= 1, got {arch!r}")
+    return hyper

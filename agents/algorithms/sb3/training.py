@@ -30,9 +30,10 @@ from pathlib import Path
 
 import numpy as np
 
-from agents.algorithms.sb3.hyperparams import load_hyperparams
+from agents.algorithms.sb3.hyperparams import check_hyperparams, load_hyperparams
 from agents.algorithms.sb3.policy import SHIPPED_MODELS, algorithm_class, residual_mapping
 from agents.files import POLICY_FILES, exclusive, write_digests, write_json
+from scara_gym.model import checks
 from scara_gym.registration import ENV_KWARGS, GOAL_ENV_IDS, TRAINING_ENV_ID
 
 ALGORITHMS = ("ppo", "sac", "td3")
@@ -161,6 +162,10 @@ def train(algo: str, out: str | Path, env_id: str = TRAINING_ENV_ID, control_mod
           command: str | None = None) -> Path:
     """Train (or resume) one run into `out`, its folder locked for the whole run
     (agents.files.exclusive); returns `out`. See the module docstring."""
+    if hyperparams is not None:
+        check_hyperparams(dict(hyperparams))  # before the folder is made or locked
+    if total_timesteps is not None:
+        checks.integer("total_timesteps", total_timesteps, 1)
     with exclusive(Path(out)):
         return _train(algo, out, env_id, control_mode, seed, hyperparams, total_timesteps, progress_bar, command)
 
@@ -172,7 +177,8 @@ def _train(algo: str, out: str | Path, env_id: str, control_mode: str, seed: int
 
     if env_id not in ENV_KWARGS:
         raise ValueError(f"env_id must be one of {sorted(ENV_KWARGS)}, got {env_id!r}")
-    hyper = dict(hyperparams) if hyperparams is not None else load_hyperparams(algo, env_id, control_mode)
+    hyper = check_hyperparams(dict(hyperparams) if hyperparams is not None
+                              else load_hyperparams(algo, env_id, control_mode))
     total_timesteps = int(total_timesteps or hyper["n_timesteps"])
     out = Path(out).resolve()
     if SHIPPED_MODELS.resolve() in (out, *out.parents):

@@ -1,0 +1,171 @@
+"""A catalogue of mistakes on every subcommand of scara-agents: each ends at once with exit status
+2 and one line on stderr that names the argument, no traceback, and nothing left behind."""
+
+import re
+import time
+
+import pytest
+
+from agents.cli import run
+
+MISTAKES = [
+    # evaluate
+    (["evaluate", "--policies", "nonsense"], "unknown policy 'nonsense'"),
+    (["evaluate", "--policies", "ppo:"], "ppo policies are given as ppo:"),
+    (["evaluate", "--policies", "sb3:"], "sb3 policies are given as sb3:RUN_DIR"),
+    (["evaluate", "--policies", "torchppo:"], "torchppo policies are given as"),
+    (["evaluate", "--policies", "shield:"], "shield:SPEC"),
+    (["evaluate", "--policies", "sb3:/nonexistent"], "/nonexistent"),
+    (["evaluate", "--policies", "torchppo:/nonexistent"], "/nonexistent"),
+    (["evaluate", "--policies", "ppo:no_such_model"], "no_such_model"),
+    (["evaluate", "--policies", "dec-continue:abc"], "dec-continue"),
+    (["evaluate", "--policies", "dec-restart:-1"], "critical_distance"),
+    (["evaluate", "--policies", "mpc:horizon=3"], "the MPC is given as mpc"),
+    (["evaluate", "--policies", "mpc"], "control_mode='voltage'"),
+    (["evaluate", "--policies", "optimal"], "control_mode='voltage'"),
+    (["evaluate", "--condition", "c12"], "--condition: invalid choice: 'c12'"),
+    (["evaluate", "--episodes", "0"], "--episodes must be >= 1"),
+    (["evaluate", "--episodes", "-3"], "--episodes must be >= 1"),
+    (["evaluate", "--episodes", "many"], "--episodes: invalid int value"),
+    (["evaluate", "--seed", "-1"], "--seed must be an integer >= 0"),
+    (["evaluate", "--seed", "1.5"], "--seed: invalid int value"),
+    (["evaluate", "--env-id", "Scara-C11-v9"], "--env-id: invalid choice"),
+    (["evaluate", "--control-mode", "current"], "--control-mode: invalid choice"),
+    (["evaluate", "--no-such-flag"], "unrecognized arguments: --no-such-flag"),
+    # train
+    (["train", "no-such-run"], "invalid choice: 'no-such-run'"),
+    (["train", "torch-ppo", "--set", "hidden_sise=3"], "not torch PPO Config fields"),
+    (["train", "torch-ppo", "--set", "noequals"], "--set takes NAME=VALUE"),
+    (["train", "torch-ppo", "--set", "=3"], "--set takes NAME=VALUE"),
+    (["train", "torch-ppo", "--set", "hidden_size=0"], "hidden_size must be an integer >= 1"),
+    (["train", "torch-ppo", "--set", "hidden_size=big"], "--hidden-size takes a number"),
+    (["train", "torch-ppo", "--set", "learning_rate=nan"], "learning_rate must be"),
+    (["train", "torch-ppo", "--set", "learning_rate=-0.1"], "learning_rate must be"),
+    (["train", "torch-ppo", "--set", "gamma=2"], "gamma must be"),
+    (["train", "torch-ppo", "--set", "gae_lambda=0"], "gae_lambda must be"),
+    (["train", "torch-ppo", "--set", "num_minibatches=7"], "num_minibatches must divide"),
+    (["train", "torch-ppo", "--set", "update_epochs=0"], "update_epochs must be an integer >= 1"),
+    (["train", "torch-ppo", "--set", "num_steps=0"], "num_steps must be an integer >= 1"),
+    (["train", "torch-ppo", "--set", "device=tpu"], "device must be one of"),
+    (["train", "torch-ppo", "--set", "randomize_params=everything"], "randomize_params must be one of"),
+    (["train", "torch-ppo", "--set", "sensor_noise=-1"], "sensor_noise must be"),
+    (["train", "torch-ppo", "--set", "clip_coef=0"], "clip_coef must be"),
+    (["train", "torch-ppo", "--set", "residual_scale=1,2"], "residual_scale: expected 3 numbers"),
+    (["train", "torch-ppo", "--set", "reward_weights=energy"], "reward_weights: expected name=number"),
+    (["train", "torch-ppo", "--set", "anneal_lr=maybe"], "--anneal-lr takes true or false"),
+    (["train", "torch-ppo", "--total-timesteps", "0"], "--total-timesteps must be >= 1"),
+    (["train", "torch-ppo", "--total-timesteps", "-1"], "--total-timesteps must be >= 1"),
+    (["train", "torch-ppo", "--seed", "-1"], "--seed must be an integer >= 0"),
+    (["train", "torch-ppo", "--env-id", "nope"], "--env-id: invalid choice"),
+    (["train", "sac", "--randomize-target"], "--randomize-target is for the ppo-residual runs"),
+    (["train", "sac", "--set", "learning_rate=nan"], "learning_rate must be"),
+    (["train", "sac", "--set", "gamma=2"], "gamma must be"),
+    (["train", "sac", "--set", "batch_size=0"], "batch_size must be an integer >= 1"),
+    (["train", "sac", "--set", "bogus=1"], "the YAML block lacks"),
+    (["train", "sac", "--set", "tau=0"], "tau must be"),
+    (["train", "sac", "--set", "ent_coef=-1"], "ent_coef must be"),
+    (["train", "ppo", "--set", "n_steps=0"], "n_steps must be an integer >= 1"),
+    (["train", "ppo", "--set", "net_arch=[0]"], "net_arch must be a list of layer widths"),
+    (["train", "ppo", "--set", "n_epochs=0"], "n_epochs must be an integer >= 1"),
+    (["train", "ppo", "--set", "clip_range=0"], "clip_range must be"),
+    (["train", "td3", "--set", "noise_std=-1"], "noise_std must be"),
+    (["train", "td3", "--set", "learning_starts=-5"], "learning_starts must be an integer >= 0"),
+    (["train", "ppo-residual", "--set", "n_envs=0"], "n_envs must be an integer >= 1"),
+    (["train", "sac", "--total-timesteps", "0"], "--total-timesteps must be >= 1"),
+    # torch-ppo
+    (["torch-ppo", "--num-steps", "0"], "num_steps must be an integer >= 1"),
+    (["torch-ppo", "--update-epochs", "0"], "update_epochs must be an integer >= 1"),
+    (["torch-ppo", "--learning-rate", "nan"], "learning_rate must be"),
+    (["torch-ppo", "--learning-rate", "-1"], "learning_rate must be"),
+    (["torch-ppo", "--learning-rate", "fast"], "--learning-rate takes a number"),
+    (["torch-ppo", "--gamma", "2"], "gamma must be"),
+    (["torch-ppo", "--gae-lambda", "0"], "gae_lambda must be"),
+    (["torch-ppo", "--hidden-size", "0"], "hidden_size must be an integer >= 1"),
+    (["torch-ppo", "--num-envs", "0"], "num_envs must be an integer >= 1"),
+    (["torch-ppo", "--num-minibatches", "3"], "num_minibatches must divide"),
+    (["torch-ppo", "--num-minibatches", "0"], "num_minibatches must be an integer >= 1"),
+    (["torch-ppo", "--total-timesteps", "-1"], "total_timesteps must be an integer >= 1"),
+    (["torch-ppo", "--device", "tpu"], "device must be one of"),
+    (["torch-ppo", "--env-id", "nope"], "env_id must be one of"),
+    (["torch-ppo", "--control-mode", "current"], "control_mode must be one of"),
+    (["torch-ppo", "--randomize-params", "nope"], "randomize_params must be one of"),
+    (["torch-ppo", "--residual-scale", "1,2"], "residual_scale: expected 3 numbers"),
+    (["torch-ppo", "--residual-scale", "a,b,c"], "residual_scale: expected 3 numbers"),
+    (["torch-ppo", "--residual-scale", "1,-2,3"], "residual_scale must be"),
+    (["torch-ppo", "--reward-weights", "time"], "reward_weights: expected name=number"),
+    (["torch-ppo", "--seed", "-1"], "seed must be an integer >= 0"),
+    (["torch-ppo", "--clip-obs", "0"], "clip_obs must be"),
+    (["torch-ppo", "--max-grad-norm", "0"], "max_grad_norm must be"),
+    (["torch-ppo", "--ent-coef", "-0.1"], "ent_coef must be"),
+    (["torch-ppo", "--vf-coef", "inf"], "vf_coef must be"),
+    (["torch-ppo", "--demo-resets", "2"], "demo_resets must be"),
+    (["torch-ppo", "--target-replay", "-0.5"], "target_replay must be"),
+    (["torch-ppo", "--sensor-noise", "nan"], "sensor_noise must be"),
+    (["torch-ppo", "--env-threads", "0"], "env_threads must be an integer >= 1"),
+    (["torch-ppo", "--checkpoint-every", "0"], "checkpoint_every must be an integer >= 1"),
+    (["torch-ppo", "--demo-bc-decay", "0"], "demo_bc_decay must be"),
+    (["torch-ppo", "--init-log-std", "nan"], "init_log_std must be"),
+    (["torch-ppo", "--resume", "--out", "nothing_here"], "--resume: nothing_here holds no checkpoint.pt"),
+    # campaign
+    (["campaign", "no-such-run"], "no registered run 'no-such-run'"),
+    (["campaign", "--seeds", "-1"], "--seeds must be integers >= 0"),
+    (["campaign", "--seeds", "a"], "--seeds: invalid int value"),
+    (["campaign", "--total-timesteps", "0"], "--total-timesteps must be >= 1"),
+    (["campaign", "--shard", "2/2"], "--shard must be K/N"),
+    (["campaign", "--shard", "x"], "--shard must be K/N"),
+    (["campaign", "--env-id", "nope"], "--env-id: invalid choice"),
+    # compare
+    (["compare", "--runs", "/nonexistent"], "--runs: no folder"),
+    (["compare", "--episodes", "0"], "--episodes must be >= 1"),
+    (["compare", "--jobs", "0"], "--jobs must be >= 1"),
+    (["compare", "--conditions", "c12"], "--conditions: invalid choice"),
+    # curves
+    (["curves", "--episodes", "0"], "--episodes must be >= 1"),
+    (["curves", "--episodes", "x"], "--episodes: invalid int value"),
+    # sweep
+    (["sweep", "--run", "ppo", "--grid", "learning_rat=0.1"], "does not have|do not have"),
+    (["sweep", "--run", "nosuch"], "--run: invalid choice"),
+    (["sweep", "--run", "ppo", "--episodes", "0"], "--episodes must be >= 1"),
+    (["sweep", "--run", "ppo", "--cpus-per-trial", "-1"], "--cpus-per-trial must be"),
+    (["sweep", "--run", "ppo", "--seeds", "-1"], "--seeds must be"),
+    (["sweep", "--run", "ppo", "--total-timesteps", "0"], "--total-timesteps must be"),
+    (["sweep", "--run", "ppo", "--max-concurrent", "0"], "--max-concurrent must be"),
+    (["sweep", "--run", "torch-ppo", "--grid", "learning_rate=nan"], "learning_rate must be"),
+    (["sweep", "--run", "ppo", "--grid", "n_steps=0"], "n_steps must be an integer >= 1"),
+    (["sweep", "--run", "ppo", "--grid", "learning_rate=../.."], "not a plain name and value"),
+    # select
+    (["select", "/nonexistent", "--out", "x"], "holds no config.json"),
+    (["select"], "the following arguments are required"),
+    # optimal
+    (["optimal", "--wall-margin", "0.5"], "--wall-margin must be in"),
+    (["optimal", "--wall-margin", "-1"], "--wall-margin must be in"),
+    (["optimal", "--condition", "c11-starts"], "--condition: invalid choice"),
+    (["optimal", "--start", "1", "2"], "--start: expected 3 arguments"),
+    (["optimal", "--target", "a", "b", "c"], "--target: invalid float value"),
+    # bench, the script itself
+    (["bench", "--nonsense"], "unrecognized arguments: --nonsense"),
+    ([], "the following arguments are required: COMMAND"),
+    (["no-such-command"], "invalid choice: 'no-such-command'"),
+]
+
+
+def test_the_catalogue_covers_every_subcommand_with_over_a_hundred_mistakes():
+    from agents.cli import build_parser
+
+    commands = {argv[0] for argv, _ in MISTAKES if argv}
+    subcommands = [a for a in build_parser()._actions if a.dest == "command"][0].choices
+    assert set(subcommands) <= commands and len(MISTAKES) >= 100
+
+
+@pytest.mark.parametrize("argv, says", MISTAKES, ids=[" ".join(a) or "(nothing)" for a, _ in MISTAKES])
+def test_a_mistake_ends_at_once_in_one_line_with_status_2(argv, says, capsys, tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    started = time.perf_counter()
+    with pytest.raises(SystemExit) as exit_:
+        run(argv)
+    assert exit_.value.code == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "error:" in err and "Traceback" not in err, err
+    assert re.search(says, err), err
+    assert list(tmp_path.iterdir()) == []  # nothing left behind
+    assert time.perf_counter() - started < 30.0  # refused before any work starts, not after
