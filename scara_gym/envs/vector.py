@@ -14,6 +14,8 @@ adapter needs.
 
 from __future__ import annotations
 
+import copy
+
 import numba
 import numpy as np
 from gymnasium import spaces
@@ -122,8 +124,7 @@ class ScaraVectorEnv(VectorEnv):
         a = check_actions(actions, (self.num_envs, 3))
         resetting = self._prev_done.copy() if self.autoreset_mode == AutoresetMode.NEXT_STEP \
             else np.zeros(self.num_envs, dtype=bool)
-        for i in np.flatnonzero(resetting):
-            task.reset_robot(i, self._rngs[i])
+        self._reset_robots(np.flatnonzero(resetting))
         if self.num_threads > 1:
             numba.set_num_threads(self.num_threads)  # per calling thread; cheap
         task.step_robots(~resetting, a, parallel=self.num_threads > 1)
@@ -140,11 +141,27 @@ class ScaraVectorEnv(VectorEnv):
             info["_final_obs"] = done
             info["final_info"] = {k: v for k, v in info.items() if not k.startswith("final")}
             info["_final_info"] = done
+            self._reset_robots(np.flatnonzero(done))
             for i in np.flatnonzero(done):
-                task.reset_robot(i, self._rngs[i])
                 obs[i] = task.observation(i, self._rngs[i])
         self._prev_done = done
         return self._agent_view(obs), reward, terminated, truncated, info
+
+    def _reset_robots(self, indices) -> None:
+        """Autoreset every robot of ``indices`` or none: each next episode is drawn on a copy of
+        its robot's generator before any robot changes (the same draws as on the generator
+        itself); a robot whose episode cannot start is named, and no robot is reset."""
+        drawn = []
+        for i in indices:
+            rng = copy.deepcopy(self._rngs[i])
+            try:
+                drawn.append((i, rng, self.task.episode_start(rng, None)))
+            except (RuntimeError, ValueError) as error:
+                raise RuntimeError(f"autoreset: robot {i}'s next episode cannot start ({error}); no robot of this "
+                                   "step was reset") from error
+        for i, rng, plan in drawn:
+            self._rngs[i] = rng
+            self.task.begin_episode(i, plan)
 
     # -- hooks of the goal-conditioned vector env (scara_gym.envs.goal) -----------------
     def _judge(self, reward: np.ndarray, terminated: np.ndarray, info: dict, resetting: np.ndarray):

@@ -166,3 +166,36 @@ def test_vector_envs_stepped_from_several_threads_under_the_workqueue_layer():
                           timeout=600)
     assert done.returncode == 0, done.stderr[-2000:]
     assert done.stdout.strip().endswith("ok")
+
+
+@pytest.mark.parametrize("mode", ["NextStep", "SameStep"])
+def test_an_autoreset_that_cannot_start_a_robot_resets_none_and_names_it(mode, monkeypatch):
+    venv = ScaraVectorEnv(num_envs=3, max_episode_steps=2, autoreset_mode=mode, randomize_target=True)
+    venv.reset(seed=0)
+    actions = np.zeros((3, 3))
+    venv.step(actions)
+    if mode == "NextStep":
+        venv.step(actions)  # every robot's episode ends here; the next step resets them
+    task, real = venv.task, venv.task.episode_start
+    calls = []
+
+    def second_fails(rng, options):
+        calls.append(1)
+        if len(calls) == 2:
+            raise RuntimeError("randomize_target: no target in the documented region passes the wall rules")
+        return real(rng, options)
+
+    monkeypatch.setattr(task, "episode_start", second_fails)
+    states = [rng.bit_generator.state for rng in venv._rngs]
+    targets, x = venv.targets, task.robots["x"].copy()
+    with pytest.raises(RuntimeError, match="autoreset: robot 1's next episode cannot start .*no robot of this step"):
+        venv.step(actions)
+    assert [rng.bit_generator.state for rng in venv._rngs] == states  # no draw was kept
+    assert np.array_equal(venv.targets, targets)  # robot 0's draw did not start its episode
+    if mode == "NextStep":
+        assert np.array_equal(task.robots["x"], x)  # the step was refused whole
+    else:
+        assert (task.outcomes["episode_steps"] == 2).all()  # stepped, none reset
+    monkeypatch.setattr(task, "episode_start", real)
+    venv.step(actions)  # the same resets, drawn again from the same generators
+    assert not np.array_equal(venv.targets, targets)
