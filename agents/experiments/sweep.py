@@ -27,6 +27,7 @@ from __future__ import annotations
 import itertools
 import json
 import re
+import signal
 import time
 from pathlib import Path
 
@@ -134,6 +135,15 @@ def _trial(config: dict) -> None:
                  "energy_mean": float(np.mean(result["energy"])), "train_seconds": result["train_seconds"]})
 
 
+LOOPBACK = "127.0.0.1"
+"""the interface a local Ray runtime started by a sweep binds to"""
+
+
+def _interrupt(signum, frame):
+    """SIGTERM during a sweep: raised as KeyboardInterrupt, so that the Ray runtime it started stops."""
+    raise KeyboardInterrupt(f"signal {signum}")
+
+
 def run_sweep(algo: str, env_id: str, control_mode: str, seeds: list[int], grid: dict[str, list], out: Path,
               condition: str = "c11", episodes: int = 100, total_timesteps: int | None = None,
               address: str | None = None, cpus_per_trial: float = 1.0, max_failures: int = 2,
@@ -156,10 +166,11 @@ def run_sweep(algo: str, env_id: str, control_mode: str, seeds: list[int], grid:
               for point in points for seed in seeds]
     package_root = str(Path(__file__).resolve().parents[2])
     started_here = not ray.is_initialized()
-    if started_here:
-        ray.init(address=address, num_cpus=None if address else num_cpus, include_dashboard=False,
-                 runtime_env={"env_vars": {"PYTHONPATH": package_root}} if address is None else None,
-                 log_to_driver=False)
+    if started_here:  # a local runtime listens on the loopback interface only
+        local = {"_node_ip_address": LOOPBACK, "runtime_env": {"env_vars": {"PYTHONPATH": package_root}},
+                 "num_cpus": num_cpus} if address is None else {}
+        ray.init(address=address, include_dashboard=False, log_to_driver=False, **local)
+    previous_handler = signal.signal(signal.SIGTERM, _interrupt) if started_here else None
     try:
         tuner = tune.Tuner(
             tune.with_resources(_trial, {"cpu": cpus_per_trial}),
@@ -169,7 +180,8 @@ def run_sweep(algo: str, env_id: str, control_mode: str, seeds: list[int], grid:
                                       failure_config=tune.FailureConfig(max_failures=max_failures)))
         results = tuner.fit()
     finally:
-        if started_here:
+        if started_here:  # on normal exit, an error, SIGINT (KeyboardInterrupt) or SIGTERM (_interrupt)
+            signal.signal(signal.SIGTERM, previous_handler)
             ray.shutdown()
     failed = []
     for result in results:

@@ -112,3 +112,36 @@ def test_a_shipped_model_is_named_plainly():
     for name in ("../models/ppo_pd", "ppo_pd/../ppo_pd", "../../agents/models/ppo_pd"):
         with pytest.raises(FileNotFoundError, match="shipped model name"):
             resolve_model(name)
+
+
+def test_a_local_runtime_binds_to_loopback_and_stops_on_sigterm(tmp_path, monkeypatch):
+    import os
+    import signal
+
+    import ray
+    from ray import tune
+
+    calls = {}
+    monkeypatch.setattr(ray, "is_initialized", lambda: False)
+    monkeypatch.setattr(ray, "init", lambda **kwargs: calls.setdefault("init", kwargs))
+    monkeypatch.setattr(ray, "shutdown", lambda: calls.setdefault("shutdown", True))
+
+    class Terminated:  # the driver gets SIGTERM while the trials run
+        def __init__(self, *args, **kwargs):
+            pass
+
+        def fit(self):
+            calls["handler"] = signal.getsignal(signal.SIGTERM)
+            os.kill(os.getpid(), signal.SIGTERM)
+
+    monkeypatch.setattr(tune, "Tuner", Terminated)
+    before = signal.getsignal(signal.SIGTERM)
+    with pytest.raises(KeyboardInterrupt, match="signal 15"):
+        sweep.run_sweep("ppo", "Scara-C11-v1", "pd", [0], {}, tmp_path, episodes=1, num_cpus=1)
+    assert calls["init"]["_node_ip_address"] == "127.0.0.1" and calls["init"]["include_dashboard"] is False
+    assert calls["handler"] is sweep._interrupt and calls["shutdown"] is True
+    assert signal.getsignal(signal.SIGTERM) is before  # restored
+    calls.clear()
+    with pytest.raises(KeyboardInterrupt):  # an existing cluster: joined, not bound or stopped here
+        sweep.run_sweep("ppo", "Scara-C11-v1", "pd", [0], {}, tmp_path, episodes=1, address="ray://head:10001")
+    assert "_node_ip_address" not in calls["init"] and calls["init"]["address"] == "ray://head:10001"
