@@ -10,8 +10,9 @@ drawn and fixed parameter shifts, sensor noise, actuation delay, a rate limit), 
   (:mod:`agents.experiments.tuning`: never re-tuned on a condition it is scored on); ``optimal``
   (the minimum-time replay, "voltage" mode) where the condition keeps the C11 start, target and
   parameters and a solution is shipped (an open-loop replay does not see sensor noise); ``mpc``
-  (the nonlinear MPC, agents.policies.mpc, "voltage" mode, its nominal model: cached like the
-  learned runs, with its solve times per control step); and every learned run under ``RUNS/ENV_ID/MODE/NAME/seedN``, one entry per registered run over
+  (the nonlinear MPC, agents.policies.mpc, "voltage" mode, its nominal model, with its solve
+  times per control step); and every learned run under ``RUNS/ENV_ID/MODE/NAME/seedN``, one
+  entry per registered run over
   its seeds;
 - behind scara_gym.wrappers.Shield (its model: the nominal parameters): PD and the runs named by
   ``shielded`` (default: those tagged "also-shielded"), as entries "... + shield". Runs trained
@@ -91,7 +92,8 @@ def compare(runs_root: Path | None = Path("runs/baselines"), conditions: list[st
     given. heuristics: tuned_heuristics() (computed here where None). pilots: also the runs
     tagged "pilot" (left out by default). robust_shield: PD behind the robust shield where the
     condition shifts the parameters. include_mpc: the MPC's entry (its evaluations are kept in
-    ``cache`` too; "solve_time": median, p95 and worst per control step [s]). Every entry says whether a shield acts ("shielded") and for
+    ``cache`` too; "solve_time": median, p95 and worst per control step [s]). Every entry says
+    whether a shield acts ("shielded") and for
     which parameters it is built ("shield_range": "nominal" or the robust ranges); a learned one
     names its runs' folder ("run") and carries their registry tags ("tags")."""
     entries, traces = [], {}
@@ -104,7 +106,7 @@ def compare(runs_root: Path | None = Path("runs/baselines"), conditions: list[st
         table = _ConditionTable(get_condition(name), episodes, verbose, cache)
         table.classical(heuristics, shielded, include_optimal, robust_shield)
         if include_mpc:
-            table.mpc(cache)
+            table.mpc()
         table.learned(groups, cache, shielded)
         entries += table.entries
         traces[name] = table.traces
@@ -181,9 +183,9 @@ class _ConditionTable:
                 self.add("optimal", "optimal", None, "voltage", runs, None,
                          note="minimum-time voltages held over the control steps (agents.policies.optimal)")
 
-    def mpc(self, cache) -> None:
+    def mpc(self) -> None:
         """The nonlinear MPC with its nominal model, and its solve times."""
-        result = mpc_episodes(self.condition, self.episodes, cache)
+        result = mpc_episodes(self.condition, self.episodes, self.cache)
         e = self.add("mpc", "mpc", None, "voltage", [result], None,
                      note="nonlinear MPC on the nominal model (agents.policies.mpc), IPOPT every control step")
         e["solve_time"] = result["solve_time"]

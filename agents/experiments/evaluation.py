@@ -103,11 +103,16 @@ def learned_episodes(run_dir: Path, condition: Condition, mode: str, episodes: i
 
     if cache is None:
         return run()
-    path = Path(cache) / f"{evaluation_key(run_dir, condition, mode, episodes, shield)}.npz"
+    return _kept(Path(cache) / f"{evaluation_key(run_dir, condition, mode, episodes, shield)}.npz", run)
+
+
+def _kept(path: Path, run) -> dict:
+    """The evaluation kept at ``path``, else ``run()``'s, kept there whole or not at all (a
+    stopped comparison leaves no half entry)."""
     if path.exists():
         return _from_arrays(load_arrays(path))
     result = run()
-    save_arrays(path, _to_arrays(result))  # whole or not at all: a stopped comparison leaves no half entry
+    save_arrays(path, _to_arrays(result))
     return result
 
 
@@ -122,12 +127,7 @@ def cached_evaluation(cache: Path | None, prefix: str, sources, description, run
     for module in sources:
         digest.update(Path(module.__file__).read_bytes())
     digest.update(json.dumps([description, TRAINING_ENV_ID, __version__], sort_keys=True, default=str).encode())
-    path = Path(cache) / f"{prefix}-{digest.hexdigest()[:32]}.npz"
-    if path.exists():
-        return _from_arrays(load_arrays(path))
-    result = run()
-    save_arrays(path, _to_arrays(result))
-    return result
+    return _kept(Path(cache) / f"{prefix}-{digest.hexdigest()[:32]}.npz", run)
 
 
 def condition_description(condition: Condition, episodes: int | None) -> list:

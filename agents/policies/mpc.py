@@ -1,7 +1,7 @@
 """Nonlinear model-predictive control: a receding-horizon optimal-control problem solved at
 every control step, on the symbolic model (:mod:`scara_gym.model.symbolic`).
 
-    scara-agents evaluate mpc --condition c11-starts --mode voltage
+    scara-agents evaluate --policies mpc --control-mode voltage --condition c11-starts
 
 The problem, on the environment's control grid (``MPCConfig``):
 
@@ -12,26 +12,27 @@ The problem, on the environment's control grid (``MPCConfig``):
   with |I| <= Imax at every collocation point, from the measured state (rates and currents
   from the observation, currents clipped to their limits);
 - the wall as a sequence of phases, as the minimum-time reference has them: a step is
-  "free" (the tip kept ``d_crit`` beyond the wall plane: not critical), "critical" (the tip
+  "free" (the tip ``wall_margin`` clear of the wall plane, normal limits), "critical" (the tip
   inside the critical band, ``wall_margin`` clear of the plane, q3 below h_obs: the widened
   limits) or "above" (q3 at least ``height_margin`` above h_obs, where the wall no longer
-  matters); below h_obs the tip's approach to the wall is rate-limited (``approach_rate``). The phase of each step comes from the previous solution's prediction (a step
-  whose tip reaches the band is critical, one whose q3 reaches h_obs + height_margin is
-  above, in that order), so that the problem stays smooth; the wall constraints are soft
-  (an exact L1 penalty) so that a measured state that violates them still has a solution;
+  matters); below h_obs the tip's approach to the wall is rate-limited (``approach_rate``).
+  The phase of each step comes from the previous solution's prediction (a step whose tip
+  comes within ``band_capture`` of the band is critical, one whose q3 reaches h_obs +
+  height_margin is above, in that order), so that the problem stays smooth; the wall
+  constraints are soft (an exact L1 penalty) so that a measured state that violates them
+  still has a solution;
 - the terminal rule: where the horizon ends below h_obs, axes 1 and 2 end at rest with zero
   current (a set the arm can stay in with axes 1 and 2 unpowered, so the next problem is
   always feasible and the wall stays clear when the horizon ends before the target);
 - the cost: squared joint errors to the target, each in seconds at its axis' top speed (the
   back-EMF caps axis i at Umax_i / (kT_i u_i)), a small voltage term, the penalties;
-- IPOPT, warm-started from the previous solution shifted by one step.
+- IPOPT, warm-started from the previous solution and its multipliers shifted by one step.
 
 The wall's plane and height are read from the observation (``wall_distance``,
 ``height_margin``), like every policy's; the dynamics are those of the model's parameters
 (``params``: the nominal robot unless given, so that a shifted robot is a model mismatch).
 Each solve's wall-clock time is kept in ``solve_times``, the solves IPOPT did not converge in
-``failures`` (the plan it stopped at is used), the state the last solve plans after its step in
-``first_prediction``.
+``failures`` (the plan it stopped at is used).
 """
 
 from __future__ import annotations
@@ -45,13 +46,13 @@ from agents.policies.optimal.transcription import radau_coefficients
 from scara_gym import DEFAULT_PARAMS, ScaraParams
 from scara_gym.envs import OBSERVATION_LAYOUT
 from scara_gym.model import checks
+from scara_gym.model.dynamics import tip_positions
 from scara_gym.model.symbolic import symbolic_model
 
 Q, RATES, CURRENTS, TARGET_ERROR = (OBSERVATION_LAYOUT[n] for n in ("q", "rate", "current", "target_error"))
 TIP_X, WALL_DISTANCE, HEIGHT_MARGIN, CRITICAL = (OBSERVATION_LAYOUT[n] for n in
                                                  ("tip_x", "wall_distance", "height_margin", "critical"))
 FREE, BAND, ABOVE = 0, 1, 2  # the phases of a step
-RADAU = (0.15505102572168222, 0.6449489742783178, 1.0)
 INF = np.inf
 
 
@@ -90,7 +91,7 @@ class MPCConfig:
     params: ScaraParams | None = None
     """the model's parameters (None: the nominal robot, DEFAULT_PARAMS)"""
     solver: str = "ipopt"
-    """the NLP solver: "ipopt" or "fatrop" (CasADi's structure-exploiting interior point)"""
+    """the NLP solver (CasADi's IPOPT; its structure-exploiting fatrop refuses this problem's layout)"""
     solver_options: dict = field(default_factory=dict)
     """further options of the CasADi solver (e.g. {"ipopt.print_level": 5})"""
 
@@ -103,7 +104,7 @@ class MPCConfig:
         for name in ("voltage_weight", "penalty", "tol", "approach_rate"):
             checks.real(name, getattr(self, name), 0.0, 1e12, low_open=True)
         checks.integer("max_iter", self.max_iter, 1, 100_000)
-        checks.choice("solver", self.solver, ("ipopt", "fatrop"))
+        checks.choice("solver", self.solver, ("ipopt",))
         checks.integer("first_passes", self.first_passes, 1, 100)
         if self.params is not None and not isinstance(self.params, ScaraParams):
             raise TypeError(f"params must be a ScaraParams or None, got {type(self.params).__name__}")
@@ -126,6 +127,7 @@ class MPCPolicy:
         if config.wall_margin + config.band_inset >= self.critical_distance:
             raise ValueError(f"wall_margin + band_inset = {config.wall_margin + config.band_inset} m leaves no "
                              f"critical band: it must be below the critical distance {self.critical_distance} m")
+        self.record = self.params.to_record()
         self.voltage_limit = self.params.voltage_limits
         self.wide_limit = np.array(obstacle.wide_voltage_limits, dtype=float)
         self.current_limit = np.array([a.current_limit for a in self.params.axes])
@@ -156,14 +158,13 @@ class MPCPolicy:
         stage = [w[self.STAGE * k:self.STAGE * (k + 1)] for k in range(n)]
         X = [s[0:9] for s in stage] + [w[self.STAGE * n:]]
         weights = ca.DM(self.weights)
-        cost, g, equality = 0, [], []
+        cost, g = 0, []
         for k in range(n):
             U, S = stage[k][9:12], stage[k][39:43]
             points = [X[k]] + [stage[k][12 + 9 * j:21 + 9 * j] for j in range(3)]
             for j in range(1, 4):
                 slope = sum(C[r, j] * points[r] for r in range(4))
                 g.append(slope - self.control_dt * model.free(points[j], U))
-            equality += [True] * 27
             for j in range(1, 4):
                 q, rates = points[j][:3], points[j][3:6]
                 clearance = side * (model.tip(q)[0] - wall_x)
@@ -172,27 +173,17 @@ class MPCPolicy:
                                     points[j][2] - wall_height + S[2], points[j][2] - wall_height - S[3],
                                     approach + c.approach_rate * (clearance - c.wall_margin) + S[0],
                                     points[j][6:9]))
-            equality += [False] * 24
             g.append(X[k + 1] - points[3])
-            equality += [True] * 9
             error = X[k + 1][:3] - target
             cost += ca.sum1(weights * error**2)
             cost += c.voltage_weight * ca.sum1((U / self.voltage_limit) ** 2)
             cost += c.penalty * ca.sum1(S) + 1e2 * c.penalty * ca.sum1(S**2)
         g.append(ca.vertcat(X[n][3], X[n][4], X[n][6], X[n][7]))
-        equality += [False] * 4
         nlp = {"x": w, "p": ca.vertcat(target, wall_x, wall_height, side), "f": cost, "g": ca.vertcat(*g)}
-        if c.solver == "fatrop":
-            options = {"structure_detection": "auto", "equality": equality, "print_time": False,
-                       "fatrop.print_level": 0, "fatrop.max_iter": c.max_iter, "fatrop.tol": c.tol,
-                       "fatrop.mu_init": 1e-3, **c.solver_options}
-        else:
-            options = {"ipopt.print_level": 0, "print_time": False, "ipopt.sb": "yes", "ipopt.max_iter": c.max_iter,
-                       "ipopt.tol": c.tol, "ipopt.warm_start_init_point": "yes", "ipopt.mu_strategy": "adaptive",
-                       "ipopt.warm_start_bound_push": 1e-6, "ipopt.warm_start_mult_bound_push": 1e-6,
-                       **c.solver_options}
+        options = {"ipopt.print_level": 0, "print_time": False, "ipopt.sb": "yes", "ipopt.max_iter": c.max_iter,
+                   "ipopt.tol": c.tol, "ipopt.warm_start_init_point": "yes", "ipopt.mu_strategy": "adaptive",
+                   "ipopt.warm_start_bound_push": 1e-6, "ipopt.warm_start_mult_bound_push": 1e-6, **c.solver_options}
         self.solver = ca.nlpsol("mpc", c.solver, nlp, options)
-        self.n_w, self.n_g = w.shape[0], nlp["g"].shape[0]
         self.predict = ca.Function("predict", [w], [ca.horzcat(*X[1:])])  # the state at every step's end
 
     # bounds of one solve -----------------------------------------------------------------
@@ -228,8 +219,7 @@ class MPCPolicy:
         """The phase of every step from the predicted state at its end (module docstring)."""
         c = self.config
         phases = np.full(len(ends), FREE)
-        tip = self.params.arm.link1_length * np.cos(ends[:, 0]) \
-            + self.params.arm.link2_length * np.cos(ends[:, 0] + ends[:, 1])
+        tip = tip_positions(ends[:, :3], self.record)[:, 0]
         above = ends[:, 2] >= wall_height + c.height_margin - 1e-4
         first_above = int(np.argmax(above)) if above.any() else len(ends)
         in_band = self.side * (tip - wall_x) <= self.critical_distance - c.band_inset + c.band_capture
@@ -273,7 +263,6 @@ class MPCPolicy:
                 self.failures += 1
             self.guess = np.array(solution["x"]).ravel()
             self.multipliers = (np.array(solution["lam_x"]).ravel(), np.array(solution["lam_g"]).ravel())
-        self.first_prediction = np.array(self.predict(self.guess)).T[0]  # the state it plans after this step
         action = np.clip(self.guess[9:12] / first_limit, -1.0, 1.0)
         self._shift()
         return action

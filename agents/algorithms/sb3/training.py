@@ -162,23 +162,21 @@ def train(algo: str, out: str | Path, env_id: str = TRAINING_ENV_ID, control_mod
           command: str | None = None) -> Path:
     """Train (or resume) one run into `out`, its folder locked for the whole run
     (agents.files.exclusive); returns `out`. See the module docstring."""
-    if hyperparams is not None:
-        check_hyperparams(dict(hyperparams))  # before the folder is made or locked
+    if env_id not in ENV_KWARGS:
+        raise ValueError(f"env_id must be one of {sorted(ENV_KWARGS)}, got {env_id!r}")
+    hyper = check_hyperparams(dict(hyperparams) if hyperparams is not None  # before the folder is made or locked
+                              else load_hyperparams(algo, env_id, control_mode))
     if total_timesteps is not None:
         checks.integer("total_timesteps", total_timesteps, 1)
     with exclusive(Path(out)):
-        return _train(algo, out, env_id, control_mode, seed, hyperparams, total_timesteps, progress_bar, command)
+        return _train(algo, out, env_id, control_mode, seed, hyper, total_timesteps, progress_bar, command)
 
 
-def _train(algo: str, out: str | Path, env_id: str, control_mode: str, seed: int, hyperparams: dict | None,
+def _train(algo: str, out: str | Path, env_id: str, control_mode: str, seed: int, hyper: dict,
            total_timesteps: int | None, progress_bar: bool, command: str | None) -> Path:
     import torch
     from stable_baselines3.common.callbacks import CheckpointCallback, EvalCallback
 
-    if env_id not in ENV_KWARGS:
-        raise ValueError(f"env_id must be one of {sorted(ENV_KWARGS)}, got {env_id!r}")
-    hyper = check_hyperparams(dict(hyperparams) if hyperparams is not None
-                              else load_hyperparams(algo, env_id, control_mode))
     total_timesteps = int(total_timesteps or hyper["n_timesteps"])
     out = Path(out).resolve()
     if SHIPPED_MODELS.resolve() in (out, *out.parents):
