@@ -12,7 +12,9 @@
     scara-agents bench
 
 Each subcommand's ``--help`` says what it does. A user's mistake ends in one line
-``error: ...`` and exit status 2 (``--debug`` shows the traceback).
+``error: ...`` and exit status 2 (``--debug`` shows the traceback). SB3 model folders are
+pickle: those neither shipped with the package nor written by a run on this machine load only
+with ``--trust`` (agents.files.require_trusted).
 """
 
 from __future__ import annotations
@@ -20,6 +22,7 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import json
+import os
 import sys
 import warnings
 from pathlib import Path
@@ -36,7 +39,7 @@ from agents.experiments.registry import RUNS, spec
 from agents.experiments.report import comparison_figures, comparison_markdown, evaluation_report, markdown_table
 from agents.experiments.runs import campaign, hyperparams_of, train_run
 from agents.experiments.targets import target_checks
-from agents.files import RunLocked, write_json
+from agents.files import TRUST_ENV, RunLocked, write_json
 from agents.policies.optimal import CollocationConfig
 from agents.policies.optimal.policy import solve_reference
 from scara_gym import DEFAULT_PARAMS
@@ -48,6 +51,12 @@ MODES = ("pd", "voltage")
 
 class UserError(Exception):
     """A mistake in a command line, reported as one line."""
+
+
+def _add_trust(p) -> None:
+    p.add_argument("--trust", action="store_true",
+                   help="load SB3 model folders (pickle: loading one runs any code it holds) that were neither shipped "
+                        "with the package nor written by a run on this machine; only for folders you trust")
 
 
 def _positive(name: str, value, allowed: str = ">= 1") -> None:
@@ -72,6 +81,7 @@ def _add_evaluate(sub) -> None:
     p.add_argument("--seed", type=int, default=None,
                    help="episode i uses seed + i (default: the condition's evaluation seeds)")
     p.add_argument("--out", type=Path, default=Path("results"))
+    _add_trust(p)
     p.set_defaults(handler=_evaluate)
 
 
@@ -123,9 +133,9 @@ def _config_value(field: dataclasses.Field, text: str):
 
 
 def _add_train(sub) -> None:
-    p = sub.add_parser("train", help="train one registered run (resumes an interrupted one)",
-                       description="Train one seed of a registered run into --out; run again into the same "
-                                   "folder to resume. Registered runs: " + ", ".join(RUNS))
+    p = sub.add_parser("train", help="train one registered run (--resume continues one)",
+                       description="Train one seed of a registered run into --out; --resume continues the run "
+                                   "a folder holds, --overwrite replaces it. Registered runs: " + ", ".join(RUNS))
     p.add_argument("name", choices=list(RUNS), metavar="NAME", help="a registered run (agents.experiments.registry)")
     p.add_argument("--env-id", choices=ENV_IDS, default=TRAINING_ENV_ID)
     p.add_argument("--control-mode", choices=MODES, default="pd")
@@ -136,10 +146,26 @@ def _add_train(sub) -> None:
                    help="ppo-residual runs: targets drawn per episode (the YAML's MODE-random block)")
     p.add_argument("--set", nargs="*", default=[], metavar="NAME=VALUE",
                    help="hyperparameters to override (YAML block names, or torch PPO Config fields)")
+    _add_run_folder_flags(p)
+    _add_trust(p)
     p.set_defaults(handler=_train)
 
 
+def _add_run_folder_flags(p) -> None:
+    p.add_argument("--resume", action="store_true",
+                   help="continue the run --out holds (an interrupted one from its snapshot or checkpoint; a finished "
+                        "one: nothing to do)")
+    p.add_argument("--overwrite", action="store_true",
+                   help="train the run --out holds again from scratch (its files are removed)")
+
+
+def _resume_or_overwrite(args) -> None:
+    if args.resume and args.overwrite:
+        raise UserError("--resume and --overwrite exclude each other: continue the run, or replace it")
+
+
 def _train(args, argv) -> Path:
+    _resume_or_overwrite(args)
     _positive("--total-timesteps", args.total_timesteps)
     if args.seed < 0:
         raise UserError(f"--seed must be an integer >= 0, got {args.seed}")
@@ -167,7 +193,8 @@ def _train(args, argv) -> Path:
             hyper.update({k: _yaml_value(v) for k, v in overrides.items()})
     out = args.out or Path("runs") / args.name / f"seed{args.seed}"
     return train_run(args.name, out, args.seed, args.env_id, args.control_mode, args.total_timesteps, hyper,
-                     command="scara-agents " + " ".join(argv), randomize_target=args.randomize_target)
+                     command="scara-agents " + " ".join(argv), randomize_target=args.randomize_target,
+                     resume=args.resume, overwrite=args.overwrite)
 
 
 def _add_torch_ppo(sub) -> None:
@@ -181,6 +208,7 @@ def _add_torch_ppo(sub) -> None:
         else:
             p.add_argument(flag, default=None, metavar=str(f.type).upper().split(" ")[0].split("[")[0])
     p.add_argument("--resume", action="store_true", help="continue from OUT/checkpoint.pt")
+    p.add_argument("--overwrite", action="store_true", help="train the run OUT holds again from scratch")
     p.set_defaults(handler=_torch_ppo)
 
 
@@ -192,10 +220,11 @@ def _torch_ppo(args, argv) -> dict:
         value = getattr(args, f.name)
         if value is not None:
             values[f.name] = value if isinstance(value, bool) else _config_value(f, value)
+    _resume_or_overwrite(args)
     config = Config(**values)  # every field checked (Config.__post_init__)
     if args.resume and not (Path(config.out) / "checkpoint.pt").exists():
         raise UserError(f"--resume: {config.out} holds no checkpoint.pt to resume from")
-    summary = train(config, resume=args.resume)
+    summary = train(config, resume=args.resume, overwrite=args.overwrite)
     print(json.dumps(summary, indent=2))
     return summary
 
@@ -225,6 +254,7 @@ def _add_campaign(sub) -> None:
     p.add_argument("--publish", type=Path, default=None, metavar="DEST",
                    help="copy the finished runs of the list, model and history only, to DEST (e.g. "
                         "docs/results/runs), instead of training")
+    _add_trust(p)
     p.set_defaults(handler=_campaign)
 
 
@@ -259,6 +289,7 @@ def _add_compare(sub) -> None:
     p.add_argument("--no-robust-shield", action="store_true",
                    help="leave out PD behind the robust shield in the shifted conditions (about 4 s per episode)")
     p.add_argument("--no-mpc", action="store_true", help="leave out the nonlinear MPC (about 10 s per episode)")
+    _add_trust(p)
     p.set_defaults(handler=_compare)
 
 
@@ -295,6 +326,7 @@ def _add_curves(sub) -> None:
     p.add_argument("--robust-shield", action="store_true", help="also PD behind the robust shield (slow)")
     p.add_argument("--cache", type=Path, default=None, metavar="DIR", help="as compare --cache")
     p.add_argument("--out", type=Path, default=Path("docs/results"))
+    _add_trust(p)
     p.set_defaults(handler=_curves)
 
 
@@ -360,6 +392,7 @@ def _add_select(sub) -> None:
     p.add_argument("--out", type=Path, required=True)
     p.add_argument("--episodes", type=int, default=5)
     p.add_argument("--seed", type=int, default=5000)
+    _add_trust(p)
     p.set_defaults(handler=_select)
 
 
@@ -454,6 +487,19 @@ def run(argv: list[str] | None = None):
     argv = list(sys.argv[1:] if argv is None else argv)
     parser = build_parser()
     args = parser.parse_args(argv)
+    trusted_before = os.environ.get(TRUST_ENV)
+    if getattr(args, "trust", False):  # for this command and the worker processes it starts
+        os.environ[TRUST_ENV] = "1"
+    try:
+        return _run_handler(args, argv)
+    finally:
+        if trusted_before is None:
+            os.environ.pop(TRUST_ENV, None)
+        else:
+            os.environ[TRUST_ENV] = trusted_before
+
+
+def _run_handler(args, argv):
     with warnings.catch_warnings():
         # the comparison's runs train and evaluate on Scara-C11-v1 on purpose (TRAINING_ENV_ID)
         warnings.filterwarnings("ignore", message=r".*Scara-C11-v[01] is out of date", category=DeprecationWarning)

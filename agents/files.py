@@ -8,6 +8,16 @@ leaves either the old file or the new one, never a truncated one. Weights load w
 file that holds anything but tensors, numbers and plain containers is refused, not run. A
 finished model folder (trained, published or shipped) carries a manifest of its files' SHA-256
 digests (``SHA256SUMS``), checked before its policy loads: a changed or corrupted file is refused.
+
+SB3's ``model.zip`` and replay buffers and its ``vecnormalize.pkl`` are pickle by design: loading
+one runs whatever code it holds. They load only from a trusted folder (:func:`require_trusted`):
+one whose manifest this machine's own runs wrote (recorded in the trust store, :func:`trust_store`),
+one shipped or published with the package (:data:`PUBLISHED_MANIFESTS`), or any folder when the
+user says so (``--trust``, or ``SCARA_GYM_TRUST=1`` for a program and the workers it starts).
+
+A run folder is claimed by its trainer under its lock (:func:`claim_run_folder`): a folder that
+holds a run of other settings, or one written by a newer version, is refused by name; one that holds
+the same run needs ``resume`` (continue it) or ``overwrite`` (train it again from scratch).
 """
 
 from __future__ import annotations
@@ -18,6 +28,7 @@ import hashlib
 import io
 import json
 import os
+import shutil
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -137,6 +148,8 @@ def exclusive(folder: str | Path) -> Iterator[Path]:
 
 POLICY_FILES = ("config.json", "model.zip", "model.pt", "vecnormalize.pkl")
 """the files of a finished run that its policy's actions depend on"""
+PICKLE_FILES = ("model.zip", "vecnormalize.pkl", "replay_buffer.pkl")
+"""the files of SB3 runs that are pickle by design: loading one runs any code it holds"""
 DIGESTS = "SHA256SUMS"
 """a model folder's manifest: ``sha256sum``'s format, one line per file the folder's policy loads"""
 
@@ -168,3 +181,188 @@ def verify_digests(folder: str | Path) -> None:
         if file_digest(path) != digest:
             raise ValueError(f"{path}: its SHA-256 is not the one {manifest} records; the file was changed or "
                              "corrupted, and is refused")
+
+
+# -- trust of pickle files ----------------------------------------------------------------------
+TRUST_ENV = "SCARA_GYM_TRUST"
+"""set to "1" (as ``--trust`` does for a command and the workers it starts): trust every folder"""
+TRUST_STORE_ENV = "SCARA_GYM_TRUST_STORE"
+"""a file to keep the trust store in instead of the user's data folder"""
+PUBLISHED_MANIFESTS = Path(__file__).resolve().parent / "published_manifests.txt"
+"""the SHA-256 of the manifest of every model folder shipped or published with the package (the
+shipped agents and ``docs/results/runs``), one per line: those folders are trusted on every machine"""
+PUBLISHED_MANIFESTS_ENV = "SCARA_GYM_PUBLISHED_MANIFESTS"
+"""a list to read and extend instead of PUBLISHED_MANIFESTS (the tests' own, so that their publishes
+leave the package's list as it is)"""
+
+
+class UntrustedFolder(ValueError):
+    """A folder whose pickle files neither this machine's runs nor the package vouch for."""
+
+
+def trust_store() -> Path:
+    """The file that lists the manifests this machine's own runs wrote (``$SCARA_GYM_TRUST_STORE``,
+    else ``$XDG_DATA_HOME/scara_gym/trusted_manifests``, by default under ``~/.local/share``)."""
+    if os.environ.get(TRUST_STORE_ENV):
+        return Path(os.environ[TRUST_STORE_ENV])
+    data = Path(os.environ.get("XDG_DATA_HOME") or Path.home() / ".local" / "share")
+    return data / "scara_gym" / "trusted_manifests"
+
+
+def manifest_digest(folder: str | Path) -> str | None:
+    """The SHA-256 of ``folder``'s manifest (None without one): it names every file the manifest lists."""
+    manifest = Path(folder) / DIGESTS
+    return file_digest(manifest) if manifest.is_file() else None
+
+
+def published_manifests() -> Path:
+    """The list of published manifests in use: ``$SCARA_GYM_PUBLISHED_MANIFESTS``, else PUBLISHED_MANIFESTS."""
+    return Path(os.environ.get(PUBLISHED_MANIFESTS_ENV) or PUBLISHED_MANIFESTS)
+
+
+def _digests_in(path: Path) -> set[str]:
+    if not path.is_file():
+        return set()
+    return {line.strip() for line in path.read_text().splitlines() if len(line.strip()) == 64}
+
+
+def record_trusted(folder: str | Path) -> None:
+    """Add ``folder``'s manifest to the trust store: its files are this machine's own. One line
+    appended in one write, on a line of its own (a crash leaves the store without that line, or
+    with part of it, which matches no manifest)."""
+    digest = manifest_digest(folder)
+    if digest is None:
+        raise ValueError(f"{folder}: no {DIGESTS} to record as trusted")
+    store = trust_store()
+    if digest in _digests_in(store):
+        return
+    store.parent.mkdir(parents=True, exist_ok=True)
+    cut = store.is_file() and not store.read_bytes().endswith(b"\n") and store.stat().st_size > 0
+    descriptor = os.open(store, os.O_WRONLY | os.O_APPEND | os.O_CREAT, 0o600)
+    try:
+        os.write(descriptor, f"{chr(10) if cut else ''}{digest}\n".encode())  # after a line a crash cut short
+        os.fsync(descriptor)
+    finally:
+        os.close(descriptor)
+
+
+def publish_manifest(folder: str | Path) -> None:
+    """Add ``folder``'s manifest to the published ones (:func:`published_manifests`; commit it with
+    the published run: it is then trusted wherever the package is), keeping the list sorted;
+    written atomically."""
+    digest = manifest_digest(folder)
+    if digest is None:
+        raise ValueError(f"{folder}: no {DIGESTS} to publish")
+    listed = published_manifests()
+    known = _digests_in(listed)
+    if digest not in known:
+        write_atomic(listed, "".join(f"{d}\n" for d in sorted(known | {digest})))
+
+
+def is_trusted(folder: str | Path) -> bool:
+    """True when ``folder`` has a manifest that the package publishes or this machine's runs wrote
+    (check its files against it first: :func:`verify_digests`)."""
+    digest = manifest_digest(folder)
+    return digest is not None and (digest in _digests_in(published_manifests()) or digest in _digests_in(trust_store()))
+
+
+def trust_everything() -> bool:
+    """Whether the user trusts every folder (``SCARA_GYM_TRUST=1``, as ``--trust`` sets it)."""
+    return os.environ.get(TRUST_ENV) == "1"
+
+
+def require_trusted(folder: str | Path, trust: bool = False) -> None:
+    """Refuse to unpickle from ``folder`` unless its files are the ones its manifest lists and that
+    manifest is trusted (:func:`is_trusted`), or ``trust`` (or :func:`trust_everything`) says so."""
+    folder = Path(folder)
+    verify_digests(folder)
+    if trust or trust_everything() or is_trusted(folder):
+        return
+    raise UntrustedFolder(
+        f"{folder}: its pickle files (SB3's model.zip, replay buffers, vecnormalize.pkl) were not written by a run "
+        f"on this machine nor shipped with the package, and loading a pickle runs any code it holds; if you trust "
+        f"where the folder came from, pass --trust (or set {TRUST_ENV}=1; in Python, trust=True)")
+
+
+# -- run folders --------------------------------------------------------------------------------
+RUN_FORMAT = 1
+"""the layout of the run folders this version writes (``run.json``'s ``run_format``); it reads
+those of this format and older ones"""
+RUN_RECORD = "run.json"
+"""what a run is, written by its trainer before it trains: trainer, algorithm, env, mode, seed and
+the settings that must stay the same when it is resumed"""
+TRAINED = ("model.zip", "model.pt", "checkpoint.pt", "summary.json", "snapshot/progress.json",
+           "snapshot.old/progress.json")
+"""what a folder holds once a run has trained in it (before that there is nothing to lose)"""
+RUN_ENTRIES = ("config.json", "summary.json", "model.zip", "model.pt", "vecnormalize.pkl", "checkpoint.pt", DIGESTS,
+               RUN_RECORD, "evaluation.npz", "snapshot", "snapshot.old", "snapshot.partial", "eval", "tb",
+               "checkpoints")
+"""the files and folders a trainer writes in a run folder: what ``overwrite`` removes, and only that"""
+IDENTITY = ("trainer", "algo", "env_id", "control_mode", "seed")
+
+
+def holds_run(folder: str | Path) -> bool:
+    """True when ``folder`` holds a run that has trained (:data:`TRAINED`)."""
+    return any((Path(folder) / name).exists() for name in TRAINED)
+
+
+def recorded_run(folder: str | Path) -> dict:
+    """What the run in ``folder`` is: its run.json, else (runs written before it) what its
+    config.json says of :data:`IDENTITY`; a run of a newer format is refused by name."""
+    folder = Path(folder)
+    if (folder / RUN_RECORD).is_file():
+        record = json.loads((folder / RUN_RECORD).read_text())
+    elif (folder / "config.json").is_file():
+        config = json.loads((folder / "config.json").read_text())
+        torch_run = config.get("algo") == "torch-ppo"
+        record = {"trainer": "torch-ppo" if torch_run else "sb3", "algo": config.get("algo", "ppo"),
+                  "env_id": config.get("env_id"), "seed": config.get("seed"),
+                  "control_mode": config.get("control_mode") if torch_run
+                  else config.get("env_kwargs", {}).get("control_mode")}
+    else:
+        return {}
+    written = record.get("run_format", 1)
+    if not isinstance(written, int) or written > RUN_FORMAT:
+        raise ValueError(f"out: {folder} was written by a newer version of scara_gym (run format {written}; this "
+                         f"version reads {RUN_FORMAT} and older): train with that version, or give another folder")
+    return record
+
+
+def _plain(value):
+    return json.loads(json.dumps(value, default=str))
+
+
+def claim_run_folder(folder: str | Path, run: dict, resume: bool, overwrite: bool) -> bool:
+    """The gate every trainer passes under the folder's lock before it trains into ``folder``.
+    ``run``: what the new run is (:data:`IDENTITY` and ``settings``, the settings a resumed run must
+    share). A folder that holds a trained run (:func:`holds_run`) is emptied with ``overwrite``
+    (its RUN_ENTRIES only), refused when it holds another run or one of a newer version, and
+    otherwise needs ``resume``. Writes run.json; returns True when a run is there to continue."""
+    folder = Path(folder)
+    record = {"run_format": RUN_FORMAT, **_plain(run)}
+    if holds_run(folder) and overwrite:
+        for name in RUN_ENTRIES:
+            path = folder / name
+            if path.is_dir():
+                shutil.rmtree(path)
+            elif path.exists():
+                path.unlink()
+    elif holds_run(folder):
+        recorded = recorded_run(folder)
+        keys = [k for k in (*IDENTITY, "settings") if k in recorded and k in record]
+        settings = [f"{name} {recorded['settings'].get(name)!r} (this run: {record['settings'].get(name)!r})"
+                    for name in sorted(set(recorded.get("settings", {})) | set(record.get("settings", {})))
+                    if "settings" in keys and recorded["settings"].get(name) != record["settings"].get(name)]
+        others = [f"{k} {recorded[k]!r} (this run: {record[k]!r})" for k in keys if k != "settings" and
+                  recorded[k] != record[k]]
+        if others or settings:
+            raise ValueError(f"out: {folder} holds another run ({'; '.join(others + settings)}); give another "
+                             "folder, or overwrite=True (--overwrite) to replace it")
+        if not resume:
+            raise ValueError(f"out: {folder} holds this run already; resume=True (--resume) continues it (a finished "
+                             "one: nothing to do), overwrite=True (--overwrite) trains it again from scratch, or give "
+                             "another folder")
+        write_json(folder / RUN_RECORD, record)
+        return True
+    write_json(folder / RUN_RECORD, record)
+    return False

@@ -4,10 +4,22 @@ tests/integrations, tests/agents; tests/test_behaviour.py and tests/test_package
 Slow tests (subprocesses, installs, training) are marked ``slow``: ``pytest -m "not slow"``
 skips them while developing; CI runs everything."""
 
+import os
+import shutil
+import tempfile
+
 import numpy as np
 import pytest
 
 import scara_gym  # noqa: F401  (registers the environments)
+from agents import files
+
+# the runs the tests train record their manifests in a trust store of their own, not the user's, and
+# the runs they publish extend a copy of the package's list of published manifests, not the list
+_TRUST = tempfile.mkdtemp(prefix="scara-trust-")
+os.environ["SCARA_GYM_TRUST_STORE"] = os.path.join(_TRUST, "trusted_manifests")
+os.environ["SCARA_GYM_PUBLISHED_MANIFESTS"] = shutil.copy(files.PUBLISHED_MANIFESTS, os.path.join(_TRUST, "published"))
+os.environ.pop("SCARA_GYM_TRUST", None)
 
 
 @pytest.fixture

@@ -31,7 +31,16 @@ from torch import nn
 
 from agents.algorithms.torch_ppo_config import Config
 from agents.algorithms.torch_ppo_hooks import Hook, hooks_for
-from agents.files import POLICY_FILES, exclusive, load_torch, save_torch, verify_digests, write_digests, write_json
+from agents.files import (
+    POLICY_FILES,
+    claim_run_folder,
+    exclusive,
+    load_torch,
+    save_torch,
+    verify_digests,
+    write_digests,
+    write_json,
+)
 from scara_gym.benchmark.protocol import SENSOR_NOISE
 from scara_gym.wrappers import ResidualSetpoint, Shield
 
@@ -233,17 +242,29 @@ def tensor(x, device) -> torch.Tensor:
     return x if isinstance(x, torch.Tensor) else torch.from_numpy(np.asarray(x)).to(device)
 
 
-def train(config: Config, resume: bool = False, hooks: list[Hook] | None = None) -> dict:
+RESUMABLE = ("out", "total_timesteps", "checkpoint_every", "device", "torch_threads", "env_threads", "compile")
+"""Config fields a resumed run may change (its budget, where and how fast it runs); the others
+are the run's settings, which a run folder keeps (agents.files.claim_run_folder)"""
+
+
+def run_record(config: Config) -> dict:
+    """What a run of ``config`` is, for agents.files.claim_run_folder."""
+    settings = {k: v for k, v in config.to_dict().items() if k not in RESUMABLE}
+    return {"trainer": "torch-ppo", "algo": "torch-ppo", "env_id": config.env_id, "control_mode": config.control_mode,
+            "seed": config.seed, "settings": settings}
+
+
+def train(config: Config, resume: bool = False, hooks: list[Hook] | None = None, overwrite: bool = False) -> dict:
     """Train, checkpointing every config.checkpoint_every updates; returns the run's summary.
-    resume: continue from the folder's checkpoint where it has one (else start afresh); without
-    it a folder that holds a run already is refused. The folder is locked for the whole run
-    (agents.files.exclusive). hooks: the research add-ons the loop calls (default: those
-    config's add-on fields ask for, agents.algorithms.torch_ppo_hooks.hooks_for)."""
+    resume: continue the run in the folder from its checkpoint where it has one (else start
+    afresh); overwrite: train a run the folder holds again from scratch; with neither, a folder
+    that holds a run is refused, and so is one that holds another run or one of a newer version
+    (agents.files.claim_run_folder). The folder is locked for the whole run (agents.files.exclusive).
+    hooks: the research add-ons the loop calls (default: those config's add-on fields ask for,
+    agents.algorithms.torch_ppo_hooks.hooks_for)."""
     out = Path(config.out)
     with exclusive(out):
-        if not resume and any((out / name).exists() for name in ("checkpoint.pt", "model.pt", "summary.json")):
-            raise ValueError(f"out: {out} holds a run already; resume=True (--resume) continues it, or give "
-                             "another folder")
+        claim_run_folder(out, run_record(config), resume, overwrite)
         return _train(config, resume, hooks)
 
 

@@ -19,7 +19,7 @@ from pathlib import Path
 import gymnasium as gym
 
 from agents.algorithms.sb3.policy import PPOPolicy
-from agents.files import POLICY_FILES, write_digests, write_json
+from agents.files import POLICY_FILES, record_trusted, require_trusted, write_digests, write_json
 from agents.policies import run_episode
 from scara_gym.registration import ENV_ID
 
@@ -29,13 +29,14 @@ def evaluate_checkpoints(run: Path, episodes: int = 5, seed: int = 5000) -> list
     kwargs = {k: config["env_kwargs"][k] for k in ("control_mode", "randomize_target")}
     env = gym.make(config.get("env_id", ENV_ID), **kwargs)
     rows = []
+    require_trusted(run / "checkpoints")  # pickle: the run's own manifest, trusted, before any is staged
     checkpoints = sorted(run.glob("checkpoints/ppo_[0-9]*_steps.zip"), key=lambda p: int(p.stem.split("_")[1]))
     with tempfile.TemporaryDirectory() as scratch:
         for checkpoint in checkpoints:
             steps = int(checkpoint.stem.split("_")[1])
             model_dir = Path(scratch) / str(steps)
             stage(run, steps, model_dir)
-            policy = PPOPolicy(env, model_dir)
+            policy = PPOPolicy(env, model_dir, trust=True)  # a staged copy of the checked files
             results = [run_episode(env, policy, seed=seed + i) for i in range(episodes)]
             times = [r["reach_time"] for r in results if r["success"]]
             rows.append({"steps": steps, "success_rate": len(times) / episodes,
@@ -72,4 +73,5 @@ def select_checkpoint(run: Path, out: Path, episodes: int = 5, seed: int = 5000)
     config["checkpoints"] = rows
     write_json(out / "config.json", config)
     write_digests(out, POLICY_FILES)
+    record_trusted(out)
     return best

@@ -22,7 +22,18 @@ from agents.algorithms.sb3.hyperparams import load_hyperparams
 from agents.algorithms.sb3.training import train as train_sb3, train_residual_ppo
 from agents.algorithms.torch_ppo_config import Config
 from agents.experiments.registry import RunSpec, spec
-from agents.files import POLICY_FILES, RunLocked, exclusive, verify_digests, write_digests, write_json
+from agents.files import (
+    PICKLE_FILES,
+    POLICY_FILES,
+    RunLocked,
+    claim_run_folder,
+    exclusive,
+    publish_manifest,
+    require_trusted,
+    verify_digests,
+    write_digests,
+    write_json,
+)
 from scara_gym.registration import TRAINING_ENV_ID
 
 
@@ -45,16 +56,22 @@ def is_finished(run: Path) -> bool:
 
 
 def publish(run: Path, dest: Path) -> Path:
-    """Copy a finished run's PUBLISHED files from ``run`` to ``dest`` (made, or refreshed)."""
+    """Copy a finished run's PUBLISHED files from ``run`` to ``dest`` (made, or refreshed), and add
+    its manifest to the package's published ones (agents.files.PUBLISHED_MANIFESTS): a run is
+    published only from a trusted folder (this machine's own run)."""
     run, dest = Path(run), Path(dest)
     if not is_finished(run):
         raise ValueError(f"{run} is not a finished run (no config.json with model.zip or model.pt)")
-    verify_digests(run)
+    if any((run / name).exists() for name in PICKLE_FILES):
+        require_trusted(run)
+    else:
+        verify_digests(run)
     for name in PUBLISHED:
         if (run / name).exists():
             (dest / name).parent.mkdir(parents=True, exist_ok=True)
             shutil.copy2(run / name, dest / name)
     write_digests(dest, POLICY_FILES)
+    publish_manifest(dest)
     return dest
 
 
@@ -72,8 +89,11 @@ def hyperparams_of(name: str, env_id: str = TRAINING_ENV_ID, control_mode: str =
 
 def train_run(name: str, out: Path, seed: int, env_id: str = TRAINING_ENV_ID, control_mode: str = "pd",
               total_timesteps: int | None = None, hyperparams: dict | None = None,
-              command: str | None = None, randomize_target: bool = False) -> Path:
-    """Train (or resume, or find finished) one run of the registered ``name`` into ``out``;
+              command: str | None = None, randomize_target: bool = False, resume: bool = False,
+              overwrite: bool = False) -> Path:
+    """Train one run of the registered ``name`` into ``out``; with ``resume``, continue the run
+    the folder holds (a finished one is found, and left as it is), with ``overwrite`` replace it;
+    with neither, a folder that holds a run is refused (agents.files.claim_run_folder).
     hyperparams: what to train with (default: hyperparams_of). randomize_target: targets drawn
     per episode, for the ppo-residual runs (their YAML's "MODE-random" block); the other runs
     are registered for their own targets."""
@@ -82,20 +102,20 @@ def train_run(name: str, out: Path, seed: int, env_id: str = TRAINING_ENV_ID, co
         raise ValueError(f"--randomize-target is for the ppo-residual runs (randomize_target=True); {name} is "
                          "registered for its own targets (the random-targets runs carry the tag)")
     if run.trainer == "torch-ppo":
-        return _train_torch_ppo(run, Path(out), seed, env_id, control_mode, total_timesteps, hyperparams)
+        return _train_torch_ppo(run, Path(out), seed, env_id, control_mode, total_timesteps, hyperparams, resume,
+                                overwrite)
     if run.recipe == "ppo-residual":
         return train_residual_ppo(control_mode, randomize_target, seed, total_timesteps, out, hyperparams,
-                                  progress_bar=False, env_id=env_id, variant=run.variant)
+                                  progress_bar=False, env_id=env_id, variant=run.variant, resume=resume,
+                                  overwrite=overwrite)
     return train_sb3(run.sb3_algorithm, out, env_id, control_mode, seed, hyperparams=hyperparams,
-                     total_timesteps=total_timesteps, command=command)
+                     total_timesteps=total_timesteps, command=command, resume=resume, overwrite=overwrite)
 
 
 def _train_torch_ppo(run: RunSpec, out: Path, seed: int, env_id: str, control_mode: str,
-                     total_timesteps: int | None, hyperparams: dict | None) -> Path:
-    from agents.algorithms.torch_ppo import train
+                     total_timesteps: int | None, hyperparams: dict | None, resume: bool, overwrite: bool) -> Path:
+    from agents.algorithms.torch_ppo import run_record, train
 
-    if is_finished(out):  # else a resumed, finished run would overwrite its summary
-        return out
     fields = dict(run.fields) if hyperparams is None else dict(hyperparams)
     if total_timesteps:
         fields["total_timesteps"] = total_timesteps
@@ -104,14 +124,18 @@ def _train_torch_ppo(run: RunSpec, out: Path, seed: int, env_id: str, control_mo
         fields["init_from"] = str(base)
     config = Config.from_dict({**fields, "env_id": env_id, "control_mode": control_mode, "seed": seed,
                                "torch_threads": 1, "out": str(out)})  # checked before anything trains
-    if base is not None:
-        train_run(run.base, base, seed, env_id, control_mode, total_timesteps)
-    train(config, resume=True)
-    if base is not None:
-        record = json.loads((out / "config.json").read_text())
-        record["base_train_seconds"] = json.loads((base / "config.json").read_text())["train_seconds"]
-        write_json(out / "config.json", record)
-        write_digests(out, POLICY_FILES)
+    with exclusive(out):
+        if is_finished(out) and not overwrite:  # a resumed, finished run would overwrite its summary
+            claim_run_folder(out, run_record(config), resume, overwrite)  # this run, and resume asked for
+            return out
+        if base is not None:  # the base of a fine-tune: trained, continued or found finished
+            train_run(run.base, base, seed, env_id, control_mode, total_timesteps, resume=True)
+        train(config, resume=resume, overwrite=overwrite)
+        if base is not None:
+            record = json.loads((out / "config.json").read_text())
+            record["base_train_seconds"] = json.loads((base / "config.json").read_text())["train_seconds"]
+            write_json(out / "config.json", record)
+            write_digests(out, POLICY_FILES)
     return out
 
 
@@ -137,7 +161,8 @@ def campaign(names: list[str], seeds: list[int], runs: Path, env_id: str = TRAIN
                    f"--runs {runs}")
         try:
             with exclusive(run):  # the run's folder, for the whole call (its trainer takes it again)
-                out = train_run(name, run, seed, env_id, control_mode, total_timesteps, command=command)
+                out = train_run(name, run, seed, env_id, control_mode, total_timesteps, command=command,
+                                resume=True)
         except RunLocked:
             print(f"{name} seed {seed}: trained by another process, passed over", flush=True)
             continue

@@ -40,6 +40,7 @@ from agents.experiments.registry import spec
 from agents.experiments.report import condition_tables
 from agents.experiments.runs import hyperparams_of, is_finished, publish, run_dir, train_run
 from agents.experiments.statistics import entry
+from agents.files import save_arrays
 from scara_gym.benchmark.protocol import evaluate, get_condition, tuning
 
 
@@ -104,7 +105,7 @@ def train_and_evaluate(algo: str, env_id: str, control_mode: str, seed: int, ove
     another task than the benchmark's (task_kwargs: e.g. a looser goal_tolerance) is evaluated
     in its own task and in the benchmark's, the latter's arrays prefixed "benchmark_"."""
     hyper = point_hyperparams(algo, env_id, control_mode, overrides)
-    train_run(algo, out, seed, env_id, control_mode, total_timesteps, hyperparams=hyper)
+    train_run(algo, out, seed, env_id, control_mode, total_timesteps, hyperparams=hyper, resume=True)
     task = task_kwargs(hyper)
     result = {"train_seconds": json.loads((out / "config.json").read_text())["train_seconds"]}
     tuning_set = tuning(condition)  # a sweep chooses: it never sees an evaluation seed
@@ -127,7 +128,7 @@ def _trial(config: dict) -> None:
     result = train_and_evaluate(config["algo"], config["env_id"], config["control_mode"], config["seed"],
                                 config["point"], out, config["condition"], config["episodes"],
                                 config["total_timesteps"])
-    np.savez(out / "evaluation.npz", **{k: np.asarray(v) for k, v in result.items()})
+    save_arrays(out / "evaluation.npz", result)  # whole or not at all: a retry finds it or not
     reach = result["reach_time"]
     tune.report({"success_rate": float(np.mean(result["success"])),
                  "collision_rate": float(np.mean(result["collisions"])),

@@ -53,7 +53,9 @@ def test_train_campaign_and_compare_run_tiny(tmp_path):
          "--set", "num_envs=2", "num_steps=8", "num_minibatches=1", "update_epochs=1", "reward_weights=time=20"])
     config = json.loads((out / "config.json").read_text())
     assert config["global_step"] == 16 and config["reward_weights"] == {"time": 20.0}
-    assert run(["campaign", "torch-ppo", "--seeds", "0", "--runs", str(runs)]) == [out]  # finished: found
+    with pytest.raises(SystemExit) as exit_:  # the registered run's settings are not these: not taken for it
+        run(["campaign", "torch-ppo", "--seeds", "0", "--runs", str(runs)])
+    assert exit_.value.code == 2
     published = tmp_path / "published"
     assert len(run(["campaign", "torch-ppo", "--seeds", "0", "--runs", str(runs), "--publish", str(published)])) == 1
     entries = run(["compare", "--runs", str(published), "--conditions", "wall-closer", "--episodes", "2",

@@ -47,3 +47,12 @@ def test_every_checkpoint_is_evaluated_over_the_same_seeds(run_with_checkpoints)
     assert [r["steps"] for r in rows] == sorted(r["steps"] for r in rows) and len(rows) >= 2
     for r in rows:
         assert 0.0 <= r["success_rate"] <= 1.0 and 0.0 <= r["collision_rate"] <= 1.0
+
+
+def test_checkpoints_from_another_machine_are_refused_before_any_loads(run_with_checkpoints, tmp_path, monkeypatch):
+    from agents import files
+
+    assert (run_with_checkpoints / "checkpoints" / files.DIGESTS).exists()  # written with the finished run
+    monkeypatch.setenv(files.TRUST_STORE_ENV, str(tmp_path / "another-machine"))
+    with pytest.raises(files.UntrustedFolder, match="checkpoints: its pickle files"):
+        checkpoints.evaluate_checkpoints(run_with_checkpoints, episodes=1)

@@ -106,6 +106,8 @@ MISTAKES = [
     (["torch-ppo", "--demo-bc-decay", "0"], "demo_bc_decay must be"),
     (["torch-ppo", "--init-log-std", "nan"], "init_log_std must be"),
     (["torch-ppo", "--resume", "--out", "nothing_here"], "--resume: nothing_here holds no checkpoint.pt"),
+    (["torch-ppo", "--resume", "--overwrite"], "--resume and --overwrite exclude each other"),
+    (["train", "sac", "--resume", "--overwrite"], "--resume and --overwrite exclude each other"),
     # campaign
     (["campaign", "no-such-run"], "no registered run 'no-such-run'"),
     (["campaign", "--seeds", "-1"], "--seeds must be integers >= 0"),

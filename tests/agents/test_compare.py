@@ -141,8 +141,12 @@ def test_the_campaign_trains_the_single_file_ppo_once(tmp_path, algo):
     assert changed and {name: getattr(recorded, name) for name in changed} == changed
     assert config["global_step"] == 2048 and config["seed"] == 0
     summary = (out / "summary.json").read_text()
-    run_folders.train_run(algo, out, seed=0, total_timesteps=2048)  # finished: left as it is
+    run_folders.train_run(algo, out, seed=0, total_timesteps=2048, resume=True)  # finished: left as it is
     assert (out / "summary.json").read_text() == summary
+    with pytest.raises(ValueError, match="holds this run already"):  # not resumed: refused, not retrained
+        run_folders.train_run(algo, out, seed=0, total_timesteps=2048)
+    with pytest.raises(ValueError, match="holds another run"):
+        run_folders.train_run(algo, out, seed=1, total_timesteps=2048, resume=True)
     (out / "summary.json").unlink()  # model.pt is also a checkpoint: without the summary, not finished
     assert not run_folders.is_finished(out)
 

@@ -105,20 +105,132 @@ def test_a_run_folder_has_one_writer_and_the_second_is_told_the_holders_pid(tmp_
         pass
 
 
-def test_training_into_a_folder_that_holds_a_run_needs_resume(tmp_path, capsys):
+def test_training_into_a_folder_that_holds_a_run_needs_resume_or_overwrite(tmp_path, capsys):
     pytest.importorskip("torch")
+    import json
+
     from agents.algorithms.torch_ppo import Config, train
     from agents.cli import run
 
     config = Config(num_envs=2, num_steps=8, num_minibatches=1, update_epochs=1, total_timesteps=16,
                     out=str(tmp_path / "run"))
     train(config)
-    with pytest.raises(ValueError, match="holds a run already; resume=True"):
+    with pytest.raises(ValueError, match="holds this run already; resume=True .* overwrite=True"):
         train(config)
     assert train(config, resume=True)["global_step"] == 16  # finished: nothing more to train
+    longer = Config(**{**config.to_dict(), "total_timesteps": 32})  # a budget may grow on resume
+    assert train(longer, resume=True)["global_step"] == 32
+    other = Config(**{**config.to_dict(), "hidden_size": 32})
+    with pytest.raises(ValueError, match=r"holds another run \(hidden_size 64 \(this run: 32\)\)"):
+        train(other, resume=True)
+    assert train(other, overwrite=True)["global_step"] == 16  # replaced: trained from scratch
+    assert json.loads((tmp_path / "run" / "config.json").read_text())["hidden_size"] == 32
+    record = json.loads((tmp_path / "run" / files.RUN_RECORD).read_text())
+    files.write_json(tmp_path / "run" / files.RUN_RECORD, {**record, "run_format": files.RUN_FORMAT + 1})
+    with pytest.raises(ValueError, match="written by a newer version of scara_gym"):
+        train(other, resume=True)
     with pytest.raises(SystemExit) as exit_:
         run(["torch-ppo", "--out", str(tmp_path / "fresh"), "--resume"])
     assert exit_.value.code == 2 and "holds no checkpoint.pt" in capsys.readouterr().err
+    with pytest.raises(SystemExit) as exit_:
+        run(["torch-ppo", "--out", str(tmp_path / "fresh"), "--resume", "--overwrite"])
+    assert exit_.value.code == 2 and "exclude each other" in capsys.readouterr().err
+
+
+def test_a_run_of_one_trainer_is_not_resumed_by_another(tmp_path):
+    pytest.importorskip("stable_baselines3")
+    import shutil
+    from pathlib import Path
+
+    from agents.algorithms.torch_ppo import Config, train
+
+    shipped = Path(__file__).resolve().parents[2] / "agents" / "models" / "ppo_pd"
+    folder = tmp_path / "sb3-run"
+    shutil.copytree(shipped, folder)
+    config = Config(num_envs=2, num_steps=8, num_minibatches=1, update_epochs=1, total_timesteps=16, out=str(folder))
+    with pytest.raises(ValueError, match=r"holds another run \(trainer 'sb3' \(this run: 'torch-ppo'\)"):
+        train(config, resume=True)
+    assert sorted(p.name for p in folder.iterdir()) == sorted([".lock", *(p.name for p in shipped.iterdir())])
+
+
+def _untrusted_copy(tmp_path, extra_line: bool = True):
+    """A copy of a shipped SB3 model whose manifest lists one more file: the same policy, a
+    manifest neither the package nor this machine vouches for."""
+    import shutil
+    from pathlib import Path
+
+    shipped = Path(__file__).resolve().parents[2] / "agents" / "models" / "ppo_pd"
+    copy = tmp_path / "from-elsewhere"
+    shutil.copytree(shipped, copy)
+    (copy / "NOTES").write_text("sent by someone\n")
+    manifest = (copy / files.DIGESTS).read_text() + f"{files.file_digest(copy / 'NOTES')}  NOTES\n"
+    (copy / files.DIGESTS).write_text(manifest)
+    return copy
+
+
+def test_sb3_folders_load_only_when_shipped_published_own_or_trusted(tmp_path, capsys, monkeypatch):
+    pytest.importorskip("stable_baselines3")
+    import gymnasium as gym
+
+    from agents.algorithms.sb3.policy import PPOPolicy, SB3Policy
+    from agents.cli import run
+
+    env = gym.make("Scara-C11-v0")
+    PPOPolicy(env, "ppo_pd")  # shipped: its manifest is in the package's list
+    copy = _untrusted_copy(tmp_path)
+    with pytest.raises(files.UntrustedFolder, match=r"from-elsewhere: its pickle files .* pass --trust"):
+        SB3Policy(env, copy)
+    SB3Policy(env, copy, trust=True)  # the user vouches for it
+    with pytest.raises(SystemExit) as exit_:
+        run(["evaluate", "--env-id", "Scara-C11-v0", "--policies", f"sb3:{copy}", "--episodes", "1",
+             "--out", str(tmp_path / "results")])
+    error = capsys.readouterr().err
+    assert exit_.value.code == 2 and len(error.strip().splitlines()) == 1 and "--trust" in error
+    assert not (tmp_path / "results").exists()
+    rows = run(["evaluate", "--env-id", "Scara-C11-v0", "--policies", f"sb3:{copy}", "--episodes", "1", "--trust",
+                "--out", str(tmp_path / "results")])
+    assert rows[0]["episodes"] == 1 and files.TRUST_ENV not in os.environ  # --trust lasts one command
+    torch_run = tmp_path / "torch-run"
+    files.write_json(torch_run / "config.json", {"algo": "torch-ppo"})
+    (torch_run / "model.pt").write_bytes(b"weights")
+    with pytest.raises(FileNotFoundError, match=r"torch-run: no SB3 model\.zip \(a torch PPO run: torchppo:DIR\)"):
+        SB3Policy(env, torch_run)
+    files.record_trusted(copy)  # as a run on this machine records its own
+    SB3Policy(env, copy)
+    monkeypatch.setenv(files.TRUST_STORE_ENV, str(tmp_path / "another-machine"))
+    with pytest.raises(files.UntrustedFolder):
+        SB3Policy(env, copy)
+
+
+def test_a_hostile_pickle_in_an_sb3_folder_never_runs(tmp_path):
+    pytest.importorskip("stable_baselines3")
+    import gymnasium as gym
+
+    from agents.algorithms.sb3.policy import SB3Policy
+
+    copy = _untrusted_copy(tmp_path)
+    mark = tmp_path / "ran"
+    (copy / "vecnormalize.pkl").write_bytes(pickle.dumps(Payload(mark)))
+    files.write_digests(copy, files.POLICY_FILES)  # a consistent manifest: the digests cannot tell
+    with pytest.raises(files.UntrustedFolder):
+        SB3Policy(gym.make("Scara-C11-v0"), copy)
+    assert not mark.exists()
+
+
+def test_the_trust_store_records_a_manifest_once_in_whole_lines(tmp_path, monkeypatch):
+    monkeypatch.setenv(files.TRUST_STORE_ENV, str(tmp_path / "store"))
+    folder = tmp_path / "run"
+    files.write_json(folder / "config.json", {"algo": "ppo"})
+    files.write_digests(folder, files.POLICY_FILES)
+    assert not files.is_trusted(folder)
+    (tmp_path / "store").write_text("0123abcd")  # a line a crash cut short
+    files.record_trusted(folder)
+    files.record_trusted(folder)
+    assert (tmp_path / "store").read_text().splitlines() == ["0123abcd", files.manifest_digest(folder)]
+    assert files.is_trusted(folder)
+    files.write_json(folder / "config.json", {"algo": "sac"})
+    with pytest.raises(ValueError, match=r"config\.json: its SHA-256"):  # a trusted manifest, a changed file
+        files.require_trusted(folder)
 
 
 @pytest.mark.slow
@@ -174,15 +286,18 @@ def test_a_run_killed_at_random_instants_resumes_to_the_same_end(tmp_path):
     assert torch.isfinite(files.load_torch(out / "model.pt")["state_dict"]["actor_logstd"]).all()
 
 
-def test_every_shipped_and_published_model_folder_matches_its_manifest():
+def test_every_shipped_and_published_model_folder_matches_its_manifest_and_is_published():
     from pathlib import Path
 
     root = Path(__file__).resolve().parents[2]
     folders = [*root.glob("agents/models/*"), *root.glob("docs/results/runs/*/*/*/seed*")]
     assert len(folders) > 50
+    published = set(files.PUBLISHED_MANIFESTS.read_text().split())  # the package's list, not the tests' copy
     for folder in folders:
         assert (folder / files.DIGESTS).exists(), folder
         files.verify_digests(folder)
+        assert files.manifest_digest(folder) in published, folder  # trusted on every machine
+    assert len(published) == len({files.manifest_digest(f) for f in folders})  # and nothing else
 
 
 def test_a_corrupted_model_file_is_refused_by_its_digest(tmp_path):

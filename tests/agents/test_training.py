@@ -1,6 +1,7 @@
 """Resumable SB3 training (agents.algorithms.sb3.training) and the hyperparameter files of the baselines."""
 
 import json
+import os
 
 import gymnasium as gym
 import numpy as np
@@ -9,6 +10,7 @@ import pytest
 import scara_gym  # noqa: F401
 
 pytest.importorskip("stable_baselines3")
+from agents import files  # noqa: E402
 from agents.algorithms.sb3 import training  # noqa: E402
 from agents.algorithms.sb3.hyperparams import load_hyperparams  # noqa: E402
 from agents.algorithms.sb3.policy import SB3Policy  # noqa: E402
@@ -62,7 +64,16 @@ def test_an_interrupted_run_resumes_from_its_snapshot(algo, tmp_path, monkeypatc
     stopped_at = json.loads((out / "snapshot" / "progress.json").read_text())["num_timesteps"]
     monkeypatch.setattr(training, "_snapshot_callback", make_snapshot)
 
-    training.train(algo, out, hyperparams=_tiny(algo), total_timesteps=400)
+    with pytest.raises(ValueError, match="holds this run already; resume=True"):
+        training.train(algo, out, hyperparams=_tiny(algo), total_timesteps=400)
+    with pytest.raises(ValueError, match=r"holds another run \(gamma 0\.\d+ \(this run: 0\.5\)\)"):
+        training.train(algo, out, hyperparams={**_tiny(algo), "gamma": 0.5}, total_timesteps=400, resume=True)
+    trusted_here = os.environ[files.TRUST_STORE_ENV]
+    monkeypatch.setenv(files.TRUST_STORE_ENV, str(tmp_path / "another-machine"))  # a snapshot from elsewhere
+    with pytest.raises(files.UntrustedFolder, match="snapshot: its pickle files"):
+        training.train(algo, out, hyperparams=_tiny(algo), total_timesteps=400, resume=True)
+    monkeypatch.setenv(files.TRUST_STORE_ENV, trusted_here)
+    training.train(algo, out, hyperparams=_tiny(algo), total_timesteps=400, resume=True)
     config = json.loads((out / "config.json").read_text())
     assert config["resumed"] and config["total_timesteps"] == 400
     assert not (out / "snapshot").exists()
@@ -73,7 +84,12 @@ def test_an_interrupted_run_resumes_from_its_snapshot(algo, tmp_path, monkeypatc
     env = gym.make("Scara-C11-v1")
     policy = SB3Policy(env, out)
     assert run_episode(env, policy, seed=0)["steps"] >= 1
-    assert training.train(algo, out) == out.resolve()  # finished: nothing more to do
+    assert files.is_trusted(out)  # recorded as this machine's own
+    mtime = (out / "model.zip").stat().st_mtime_ns
+    assert training.train(algo, out, hyperparams=_tiny(algo), resume=True) == out.resolve()  # finished: nothing to do
+    assert (out / "model.zip").stat().st_mtime_ns == mtime
+    with pytest.raises(ValueError, match="holds this run already"):
+        training.train(algo, out, hyperparams=_tiny(algo))
 
 
 @pytest.mark.parametrize("variant, expected", [

@@ -1,5 +1,8 @@
 """Saved stable-baselines3 models as policies: any run of :func:`agents.algorithms.sb3.training.train`
-and the agents shipped with the package (``agents/models/NAME``, found by name from anywhere)."""
+and the agents shipped with the package (``agents/models/NAME``, found by name from anywhere).
+
+Their files are pickle: a folder loads only when it is trusted (agents.files.require_trusted:
+shipped or published with the package, written by a run on this machine, or ``trust=True``)."""
 
 from __future__ import annotations
 
@@ -8,7 +11,7 @@ from pathlib import Path
 
 import numpy as np
 
-from agents.files import verify_digests
+from agents.files import require_trusted
 from scara_gym.wrappers import ResidualSetpoint
 
 SHIPPED_MODELS = Path(__file__).resolve().parents[2] / "models"
@@ -46,11 +49,14 @@ def resolve_model(name_or_path: str | Path) -> Path:
 class SB3Policy:
     """A model saved by :func:`train` (or a shipped one) as an obs -> action policy for one env."""
 
-    def __init__(self, env, model_dir: str | Path) -> None:
+    def __init__(self, env, model_dir: str | Path, trust: bool = False) -> None:
         import pickle
 
         model_dir = Path(model_dir)
-        verify_digests(model_dir)
+        if not (model_dir / "model.zip").is_file():
+            other = " (a torch PPO run: torchppo:DIR)" if (model_dir / "model.pt").is_file() else ""
+            raise FileNotFoundError(f"{model_dir}: no SB3 model.zip{other}")
+        require_trusted(model_dir, trust)  # its files are its manifest's, and that manifest is trusted
         self.env = env.unwrapped
         config = json.loads((model_dir / "config.json").read_text())
         trained_mode = config["env_kwargs"]["control_mode"]
@@ -90,7 +96,7 @@ class SB3Policy:
 class PPOPolicy(SB3Policy):
     """A saved PPO agent (a folder, or a shipped model's name) as an obs -> action policy."""
 
-    def __init__(self, env, model_dir: str | Path) -> None:
+    def __init__(self, env, model_dir: str | Path, trust: bool = False) -> None:
         model_dir = resolve_model(model_dir)
-        super().__init__(env, model_dir)
+        super().__init__(env, model_dir, trust)
         self.name = f"ppo ({model_dir.name})"

@@ -12,8 +12,14 @@ One function, :func:`train`, trains any of the three algorithms from a hyperpara
 3. a snapshot every ``snapshot_freq`` steps (``snapshot/``: model, replay buffer, normalization
    statistics, evaluation history, steps and seconds so far), written to a scratch folder
    and swapped in whole, so an interrupted run loses at most one snapshot interval:
-   calling :func:`train` again with the same ``out`` resumes from it;
+   calling :func:`train` again with the same ``out`` and ``resume=True`` resumes from it;
 4. at the end: ``model.zip``, ``vecnormalize.pkl`` (if normalized) and ``config.json``.
+
+A folder that holds a run is refused unless ``resume`` (continue it; a finished one is returned
+as it is) or ``overwrite`` (train it again from scratch), and so is one that holds a run of other
+settings (agents.files.claim_run_folder). Every snapshot, the finished run and its checkpoints
+carry a manifest of digests recorded as this machine's own (agents.files.record_trusted), and a
+snapshot resumes only from a trusted manifest: its files are pickle.
 
 Checkpoint rule: none. The policy at the end of the budget is the one evaluated; the
 evaluation history is a learning curve, not a selector. A resumed run continues the same
@@ -32,7 +38,16 @@ import numpy as np
 
 from agents.algorithms.sb3.hyperparams import check_hyperparams, load_hyperparams
 from agents.algorithms.sb3.policy import SHIPPED_MODELS, algorithm_class, residual_mapping
-from agents.files import POLICY_FILES, exclusive, write_digests, write_json
+from agents.files import (
+    DIGESTS,
+    POLICY_FILES,
+    claim_run_folder,
+    exclusive,
+    record_trusted,
+    require_trusted,
+    write_digests,
+    write_json,
+)
 from scara_gym.model import checks
 from scara_gym.registration import ENV_KWARGS, GOAL_ENV_IDS, TRAINING_ENV_ID
 
@@ -41,6 +56,11 @@ ALGORITHMS = ("ppo", "sac", "td3")
 RUN_KEYS = {"n_timesteps", "n_envs", "env_threads", "env_kwargs", "normalize", "residual_scale",
             "residual_deadzone", "net_arch", "log_std_init", "noise_std", "snapshot_freq",
             "eval_freq", "eval_episodes", "torch_threads", "checkpoint_freq"}
+RESUMABLE = ("n_timesteps", "snapshot_freq", "eval_freq", "eval_episodes", "torch_threads", "env_threads",
+             "checkpoint_freq")
+"""hyperparameters a resumed run may change (its budget, its bookkeeping and how fast it runs); the
+others are the run's settings, which its folder keeps"""
+SNAPSHOT_FILES = ("model.zip", "replay_buffer.pkl", "vecnormalize.pkl", "evaluations.npz", "progress.json")
 
 
 def _normalize_kwargs(hyper: dict) -> dict | None:
@@ -132,6 +152,8 @@ def _snapshot_callback(out: Path, every: int, eval_callback, clock: dict):
             progress = {"num_timesteps": int(self.num_timesteps), "best_mean_reward": float(eval_callback.best_mean_reward),
                         "train_seconds": clock["before"] + time.perf_counter() - clock["started"]}
             (scratch / "progress.json").write_text(json.dumps(progress))
+            write_digests(scratch, SNAPSHOT_FILES)
+            record_trusted(scratch)  # this machine's own: a resume may unpickle it
             if final.exists():
                 final.rename(old)
             scratch.rename(final)
@@ -159,9 +181,10 @@ def _restore_history(path: Path, eval_callback, best_mean_reward: float) -> None
 
 def train(algo: str, out: str | Path, env_id: str = TRAINING_ENV_ID, control_mode: str = "pd", seed: int = 0,
           hyperparams: dict | None = None, total_timesteps: int | None = None, progress_bar: bool = False,
-          command: str | None = None) -> Path:
-    """Train (or resume) one run into `out`, its folder locked for the whole run
-    (agents.files.exclusive); returns `out`. See the module docstring."""
+          command: str | None = None, resume: bool = False, overwrite: bool = False) -> Path:
+    """Train one run into `out` (with ``resume``: continue the one there; with ``overwrite``:
+    replace it), its folder locked for the whole run (agents.files.exclusive); returns `out`.
+    See the module docstring."""
     if env_id not in ENV_KWARGS:
         raise ValueError(f"env_id must be one of {sorted(ENV_KWARGS)}, got {env_id!r}")
     hyper = check_hyperparams(dict(hyperparams) if hyperparams is not None  # before the folder is made or locked
@@ -169,11 +192,19 @@ def train(algo: str, out: str | Path, env_id: str = TRAINING_ENV_ID, control_mod
     if total_timesteps is not None:
         checks.integer("total_timesteps", total_timesteps, 1)
     with exclusive(Path(out)):
-        return _train(algo, out, env_id, control_mode, seed, hyper, total_timesteps, progress_bar, command)
+        return _train(algo, out, env_id, control_mode, seed, hyper, total_timesteps, progress_bar, command, resume,
+                      overwrite)
+
+
+def run_record(algo: str, env_id: str, control_mode: str, seed: int, hyper: dict) -> dict:
+    """What an SB3 run is, for agents.files.claim_run_folder."""
+    return {"trainer": "sb3", "algo": algo, "env_id": env_id, "control_mode": control_mode, "seed": seed,
+            "settings": {k: v for k, v in hyper.items() if k not in RESUMABLE}}
 
 
 def _train(algo: str, out: str | Path, env_id: str, control_mode: str, seed: int, hyper: dict,
-           total_timesteps: int | None, progress_bar: bool, command: str | None) -> Path:
+           total_timesteps: int | None, progress_bar: bool, command: str | None, resume: bool,
+           overwrite: bool) -> Path:
     import torch
     from stable_baselines3.common.callbacks import CheckpointCallback, EvalCallback
 
@@ -181,9 +212,9 @@ def _train(algo: str, out: str | Path, env_id: str, control_mode: str, seed: int
     out = Path(out).resolve()
     if SHIPPED_MODELS.resolve() in (out, *out.parents):
         raise ValueError(f"training writes under runs/ or --out, never into the shipped models ({out})")
-    if (out / "config.json").exists() and (out / "model.zip").exists():
-        return out  # finished before
-    out.mkdir(parents=True, exist_ok=True)
+    continuing = claim_run_folder(out, run_record(algo, env_id, control_mode, seed, hyper), resume, overwrite)
+    if continuing and (out / "config.json").exists() and (out / "model.zip").exists():
+        return out  # finished before: nothing more to do
     if hyper.get("torch_threads"):
         torch.set_num_threads(int(hyper["torch_threads"]))
     env_kwargs = {"control_mode": control_mode, **hyper.get("env_kwargs", {})}
@@ -192,6 +223,8 @@ def _train(algo: str, out: str | Path, env_id: str, control_mode: str, seed: int
     if not (snapshot / "progress.json").exists() and (out / "snapshot.old" / "progress.json").exists():
         snapshot = out / "snapshot.old"  # interrupted while swapping
     resuming = (snapshot / "progress.json").exists()
+    if resuming:
+        require_trusted(snapshot)  # pickle: only this machine's own snapshots, or --trust
     progress = json.loads((snapshot / "progress.json").read_text()) if resuming else \
         {"num_timesteps": 0, "best_mean_reward": -np.inf, "train_seconds": 0.0}
     normalizer = snapshot / "vecnormalize.pkl" if resuming and (snapshot / "vecnormalize.pkl").exists() else None
@@ -242,6 +275,11 @@ def _train(algo: str, out: str | Path, env_id: str, control_mode: str, seed: int
               "command": command or f"agents.algorithms.sb3.training.train({algo!r}, {str(out)!r}, {env_id!r}, {control_mode!r}, {seed})"}
     write_json(out / "config.json", config)
     write_digests(out, POLICY_FILES)
+    record_trusted(out)
+    if (out / "checkpoints").is_dir():  # scara-agents select loads them
+        write_digests(out / "checkpoints", [p.name for p in (out / "checkpoints").iterdir() if p.is_file()
+                                            and not p.name.startswith(".") and p.name != DIGESTS])
+        record_trusted(out / "checkpoints")
     shutil.rmtree(out / "snapshot", ignore_errors=True)
     shutil.rmtree(out / "snapshot.old", ignore_errors=True)
     return out
@@ -254,10 +292,11 @@ VARIANTS = ("dr", "frugal")
 def train_residual_ppo(control_mode: str = "pd", randomize_target: bool = False, seed: int = 0,
           total_timesteps: int | None = None, out: str | Path = "runs/ppo_pd",
           hyperparams: dict | None = None, eval_freq: int = 25_000, eval_episodes: int = 10,
-          progress_bar: bool = True, env_id: str = TRAINING_ENV_ID, variant: str | None = None) -> Path:
+          progress_bar: bool = True, env_id: str = TRAINING_ENV_ID, variant: str | None = None,
+          resume: bool = False, overwrite: bool = False) -> Path:
     """Train the engineered PPO agent (:func:`train` with ppo_residual.yml's residual set-point);
     writes model.zip, vecnormalize.pkl, config.json, checkpoints/, eval/ and tb/, and
-    resumes from its snapshot when run again into the same folder. ``variant`` ("dr",
+    resumes from its snapshot when run again into the same folder with ``resume``. ``variant`` ("dr",
     "frugal") takes the YAML block "MODE-VARIANT"."""
     if variant is not None and variant not in VARIANTS:
         raise ValueError(f"variant must be None or one of {VARIANTS}, got {variant!r}")
@@ -271,4 +310,5 @@ def train_residual_ppo(control_mode: str = "pd", randomize_target: bool = False,
     command = (f"scara-agents train ppo-residual{'-' + variant if variant else ''} --env-id {env_id} "
                f"--control-mode {control_mode} --seed {seed} --total-timesteps {total_timesteps}"
                + (" --randomize-target" if randomize_target else "") + f" --out {out}")
-    return train("ppo", out, env_id, control_mode, seed, hyper, total_timesteps, progress_bar, command)
+    return train("ppo", out, env_id, control_mode, seed, hyper, total_timesteps, progress_bar, command, resume,
+                 overwrite)
