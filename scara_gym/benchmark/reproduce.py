@@ -13,7 +13,7 @@ from scara_gym.benchmark.tasks import compare_forms, obstacle_avoidance, point_t
 from scara_gym.model.params import DEFAULT_PARAMS, ScaraParams
 from scara_gym.model.simulator import Trajectory
 
-# The seed paper's numbers (shared/seed, Tables 1-3 and section 3.3)
+# The seed paper's numbers (its Tables 1-3 and section 3.3)
 SEED_RUNTIME_IMPLICIT = 4.7382   # MATLAB ode45, s
 SEED_RUNTIME_EXPLICIT = 3.9431
 SEED_RUNTIME_SIMULINK = 0.2093

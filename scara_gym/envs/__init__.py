@@ -7,7 +7,7 @@
 - :mod:`~scara_gym.envs.sim_to_real`: observation noise, actuation delay, action rate limit;
 - :mod:`~scara_gym.envs.variants`, :mod:`~scara_gym.envs.goal`: the registered variants
   (randomized physics and wall, the goal-conditioned task) with their cards;
-- :mod:`~scara_gym.envs.scara_env`: :class:`ScaraEnv` (``Scara-C11-v0``);
+- :mod:`~scara_gym.envs.scara_env`: :class:`ScaraEnv`, the env of every registered id;
 - :mod:`~scara_gym.envs.vector`: :class:`ScaraVectorEnv`, the native vector environment;
 - :mod:`~scara_gym.envs.rendering`: the matplotlib renderer.
 """

@@ -1,4 +1,4 @@
-"""Scara-C11-v0 and -v1: the C11 point-to-point move with the wall of task c in the way."""
+"""ScaraEnv, the env of every registered id: the C11 point-to-point move with the wall of task c in the way."""
 
 from __future__ import annotations
 
@@ -156,7 +156,7 @@ class ScaraEnv(gym.Env):
     - exact_switches (False): locate every mode switch inside the integration steps
       (a current limit or the PD law's saturation reached and left within one step is
       found; the saturation is a located switch, not a kink); Scara-C11-v1 and -v2
-      register True. False is the 0.1 integration of Scara-C11-v0, which sees switches at the
+      register True. False is the first releases' integration (Scara-C11-v0), which sees switches at the
       ends of integration steps only.
     - randomize_params (False): False, True ("physics"), "physics", "wall", "all" or a
       dict {dotted path: (low, high)}: parameters drawn per episode, see the starting

@@ -231,7 +231,7 @@ class ScaraTask:
             raise ValueError(
                 f"params: obstacle.dec = {self.params.obstacle.dec!r} has no effect in the environment, "
                 f"where the agent decides how to pass the wall; the seed's dec rule lives in "
-                f"scara_gym.obstacle_avoidance(dec=...) (the model) and agents.policies.DecPolicy "
+                f"scara_gym.obstacle_avoidance(dec=...) (the model) and agents.policies.DecHeuristic "
                 f"(a policy for this environment). Leave obstacle.dec at {DEFAULT_DEC:g}")
         self.reward_weights = _reward_weights(reward_weights)
         self.randomization = ParameterRanges.from_argument(randomize_params, self.params)

@@ -1,7 +1,7 @@
 """Native vector environment: N robots stepped in one parallel compiled call.
 
-``gym.make_vec("Scara-C11-v0", num_envs=N, vectorization_mode="vector_entry_point")``.
-Sub-environment i behaves exactly as ``gym.make("Scara-C11-v0", ...)`` reset with
+``gym.make_vec(ID, num_envs=N, vectorization_mode="vector_entry_point")`` for any registered id.
+Sub-environment i behaves exactly as ``gym.make(ID, ...)`` reset with
 seed ``seed + i`` (the same compiled control step, bit for bit).
 
 Autoreset: ``autoreset_mode="NextStep"`` (Gymnasium's default): the step after an
@@ -39,7 +39,7 @@ def check_autoreset_mode(autoreset_mode) -> AutoresetMode:
 
 
 class ScaraVectorEnv(VectorEnv):
-    """N copies of Scara-C11-v0 (same arguments as ScaraEnv), stepped in parallel.
+    """N copies of the env of a registered id (the same arguments as ScaraEnv), stepped in parallel.
 
     Extra arguments: num_envs, max_episode_steps (300: the registered time limit),
     autoreset_mode ("NextStep" or "SameStep"), num_threads (numba threads of the parallel
@@ -76,7 +76,7 @@ class ScaraVectorEnv(VectorEnv):
         self.num_threads = int(num_threads)
         if kwargs.get("render_mode") is not None:
             raise ValueError("the vector environment does not render; use render_mode=None "
-                             "(render a single Scara-C11-v0 instead)")
+                             "(render a single env instead)")
         self.task = task = ScaraTask(num_robots=int(num_envs), **kwargs)
         self.num_envs = int(num_envs)
         self.max_episode_steps = int(max_episode_steps)

@@ -1,11 +1,11 @@
 """The C11 parameter tree: one frozen, typed, validated set of numbers.
 
-Defaults are the reconstructed set of ``shared/c11-spec.md``: the OpenModelica
-solutions of exercise A60 (ch. 17.2) of P. Junglas, "Praxis der
+The seed paper states the equations, not the numbers. The defaults are a reconstructed
+set: the OpenModelica solutions of exercise A60 (ch. 17.2) of P. Junglas, "Praxis der
 Simulationstechnik" (repository modelica-3rdparty/PraxisSimulationstechnik,
 package Kap17, Solutions/ScaraA.mo and ScaraB.mo), a SCARA robot of exactly the
 C11 structure with the same start and target. The obstacle values are not in the
-seed paper; the spec chose them so that the restart variant reproduces the
+seed paper either; they are chosen so that the restart variant reproduces the
 seed's 1.4555 s.
 
 Every leaf field carries its unit and allowed range in ``metadata``; the

@@ -178,7 +178,8 @@ class Simulator:
         decelerate: q1' = dec v1, q2' = dec v2 while critical (the seed's rule).
         wall: locate crossings of the wall plane (collisions).
         stop: stop events, a subset of ("target", "collision", "critical", "above").
-        rtol, atol: error tolerances, with scipy's meaning.
+        rtol: relative error tolerance, with scipy's meaning.
+        atol: absolute error tolerance, with scipy's meaning.
         exact_switches: the PD saturation a located mode switch, and every mode switch
             searched inside each step (one that starts and ends inside a step is found);
             False (the default, the behaviour of 0.1 and 0.2): switches are seen at the ends

@@ -523,3 +523,14 @@ def test_randomize_start_draws_the_start_per_episode_inside_its_region():
     for bad in ("yes", ([0.1, 0, 0], [0.0, 0, 0]), ([0, 0, 0], [2.0, 0, 0]), ([0, 0], [0, 0])):
         with pytest.raises(ValueError, match="randomize_start must be False, True or \\(low, high\\)"):
             gym.make("Scara-C11-v2", randomize_start=bad)
+
+
+def test_the_dec_error_names_a_policy_that_exists():
+    import re
+
+    import agents.policies
+
+    with pytest.raises(ValueError, match="obstacle.dec") as error:
+        gym.make("Scara-C11-v2", params={"obstacle.dec": 0.1})
+    named = re.findall(r"agents\.policies\.(\w+)", str(error.value))
+    assert named and all(hasattr(agents.policies, name) for name in named)
