@@ -57,12 +57,13 @@ def env_page(env_id: str) -> str:
             ("registered arguments", _arguments(spec.kwargs)),
             ("time limit", f"{spec.max_episode_steps} steps"),
             ("role", _role(env_id))]
-    table = "\n".join(["| | |", "|---|---|", *(f"| {k} | {v} |" for k, v in rows)])
+    table = "\n".join(["| registration | |", "|---|---|", *(f"| {k} | {v} |" for k, v in rows)])
     return (f"{NOTICE.format(source='the card of ' + cls.__module__ + '.' + cls.__name__)}\n\n"
             f"# {env_id}\n\n{summary}\n\n{table}\n\n"
             f"```python\nimport gymnasium as gym\nimport scara_gym  # registers the ids\n\n"
             f"env = gym.make(\"{env_id}\")\n"
-            f"venv = gym.make_vec(\"{env_id}\", num_envs=1024, vectorization_mode=\"vector_entry_point\")\n```\n\n"
+            f"venv = gym.make_vec(\"{env_id}\", num_envs=1024,\n"
+            f"                    vectorization_mode=\"vector_entry_point\")\n```\n\n"
             f"{body}\n")
 
 

@@ -168,8 +168,14 @@ def get_condition(name: str | Condition) -> Condition:
 
 
 def tuning(name: str, episodes: int | None = None) -> Condition:
-    """The tuning set of a condition: its distribution on tuning seeds (10^8 + its band), for
-    choosing a policy's parameters; never scored."""
+    """The tuning set of a condition: its distribution on tuning seeds, never scored.
+
+    Args:
+        name: the condition's name.
+        episodes: the tuning set's size (None: the condition's own count).
+
+    Returns:
+        A Condition on the seeds 10^8 + the condition's band, for choosing a policy's parameters."""
     base = get_condition(name)
     index = (base.seed - EVALUATION_SEED) // SEED_BAND
     return dataclasses.replace(base, name=f"{base.name} (tuning)", seed=TUNING_SEED + index * SEED_BAND,
@@ -205,10 +211,23 @@ def draws_nothing(env) -> bool:
 
 def evaluate(condition: Condition | str, policy_factory: Callable, control_mode: str = "pd",
              episodes: int | None = None, env_id: str = TRAINING_ENV_ID, record: int = 1, env_kwargs=None) -> dict:
-    """``policy_factory(env)``'s episodes in ``condition`` (a Condition or a name): per-episode
-    arrays (success, collisions, reach_time, energy, ...; scara_gym.benchmark.episodes) over the
-    condition's first ``episodes`` seeds, with "condition" (its name). A deterministic condition
-    runs a deterministic policy's episode once per distinct outcome (run_episodes' shortcut)."""
+    """A policy's episodes in a condition of the protocol, on the condition's evaluation seeds.
+
+    A deterministic condition runs a deterministic policy's episode once per distinct outcome
+    (run_episodes' shortcut).
+
+    Args:
+        condition: a Condition or the name of one (``CONDITIONS``).
+        policy_factory: ``policy_factory(env)`` returns the policy, a callable obs -> action.
+        control_mode: "pd" or "voltage".
+        episodes: how many of the condition's seeds (None: its own count).
+        env_id: the registered id the episodes run on.
+        record: record a trace of the first ``record`` episodes.
+        env_kwargs (dict | None): further environment arguments (over the condition's).
+
+    Returns:
+        Per-episode arrays (success, collisions, reach_time, energy, ...; see
+        scara_gym.benchmark.episodes) and "condition", the condition's name."""
     condition = get_condition(condition)
     env = condition.make_env(control_mode, env_id, **(env_kwargs or {}))
     seeds = condition.seeds(episodes)

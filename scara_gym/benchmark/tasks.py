@@ -35,7 +35,20 @@ def _end_time(t_end) -> float:
 def point_to_point(params: ScaraParams = DEFAULT_PARAMS, *, form: str = "explicit",
                    rtol: float = REFERENCE_RTOL, atol: float = REFERENCE_ATOL,
                    t_end: float = 5.0, q0=None, wall: bool = False) -> Trajectory:
-    """Task b: PD point-to-point move from the task's start, stopped when all |q_i - q^_i| < acc."""
+    """Task b: PD point-to-point move from the task's start, stopped when all |q_i - q^_i| < acc.
+
+    Args:
+        params: the parameter tree (default: the C11 set).
+        form: "explicit" (analytic inverse of the mass matrix) or "implicit" (linear solve).
+        rtol: relative integration tolerance (scipy's meaning).
+        atol: absolute integration tolerance.
+        t_end: the longest simulated time [s].
+        q0 (sequence of 3 floats | None): the start [rad, rad, m]; None: the task's.
+        wall: locate crossings of the wall plane (the move ignores the wall).
+
+    Returns:
+        The Trajectory: ``reach_time``, located ``events``, samples and the ``tip`` path.
+    """
     t_end = _end_time(t_end)
     sim = Simulator(params, form=form, wall=wall, stop=("target",), rtol=rtol, atol=atol)
     sim.reset(start_state(params, q0), command=params.task.target)
@@ -69,7 +82,18 @@ class FormComparison:
 
 def compare_forms(params: ScaraParams = DEFAULT_PARAMS, *, repeats: int = 5,
                   rtol: float = REFERENCE_RTOL, atol: float = REFERENCE_ATOL) -> FormComparison:
-    """Task a: same model, analytic inverse vs linear solve per evaluation."""
+    """Task a: same model, analytic inverse vs linear solve per evaluation.
+
+    Args:
+        params: the parameter tree (default: the C11 set).
+        repeats: timed runs of each form (the best counts).
+        rtol: relative integration tolerance.
+        atol: absolute integration tolerance.
+
+    Returns:
+        The FormComparison: each form's runtime and the largest relative difference of the
+        two trajectories.
+    """
     repeats = checks.integer("repeats", repeats, 1)
     runs = {}
     for form in ("explicit", "implicit"):
@@ -94,16 +118,26 @@ def obstacle_avoidance(params: ScaraParams = DEFAULT_PARAMS, *, variant: str = "
                        t_end: float = 5.0, stop_on_collision: bool = False) -> Trajectory:
     """Task c: the move of task b with the wall in the way, avoided by the seed's ``dec`` rule.
 
-    variant:
-        "restart": stop at the critical event, continue with the decelerated model
-            (q1' = dec v1, q2' = dec v2, voltages up to Umax_wide) until q3 >= h_obs,
-            then restart plain point-to-point from the reached positions with rates
-            and currents set to zero (the seed's MATLAB version).
-        "continuous": the same switch evaluated at every instant, no reset (Simulink).
-        "none": plain PD, no avoidance: the tip crosses the wall below h_obs.
-    dec overrides ``params.obstacle.dec``. Collisions (the tip crossing x = x_obs while
-    q3 < h_obs) are located and logged; the run goes on through them unless
-    stop_on_collision.
+    Collisions (the tip crossing x = x_obs while q3 < h_obs) are located and logged; the run
+    goes on through them unless ``stop_on_collision``.
+
+    Args:
+        params: the parameter tree (default: the C11 set).
+        variant: "restart": stop at the critical event, continue with the decelerated model
+            (q1' = dec v1, q2' = dec v2, voltages up to Umax_wide) until q3 >= h_obs, then
+            restart plain point-to-point from the reached positions with rates and currents
+            set to zero (the seed's MATLAB version); "continuous": the same switch evaluated
+            at every instant, no reset (Simulink); "none": plain PD, no avoidance, the tip
+            crosses the wall below h_obs.
+        dec: the deceleration factor; None: ``params.obstacle.dec``.
+        form: "explicit" or "implicit", as in point_to_point.
+        rtol: relative integration tolerance.
+        atol: absolute integration tolerance.
+        t_end: the longest simulated time [s].
+        stop_on_collision: end the run at the first collision.
+
+    Returns:
+        The Trajectory, with ``collision_time`` and ``first(event name)``.
     """
     checks.choice("variant", variant, VARIANTS)
     params = resolve_params(params)

@@ -203,7 +203,14 @@ class ScaraParams:
         return np.array([a.current_limit for a in self.axes])
 
     def replace(self, overrides: Mapping[str, Any] | None = None, **kwargs: Any) -> ScaraParams:
-        """A copy with dotted-path overrides, e.g. ``{"arm.load_mass": 1.0, "axes.2.p_gain": 4000}``."""
+        """A copy with dotted-path overrides.
+
+        Args:
+            overrides: {dotted path: value}, e.g. ``{"arm.load_mass": 1.0, "axes.2.p_gain": 4000}``.
+            **kwargs: more overrides, a keyword per path without a dot (e.g. a whole ``task=...``).
+
+        Returns:
+            The new, validated ScaraParams (a bad value raises ValueError naming its path and range)."""
         if overrides is not None and not isinstance(overrides, Mapping):
             raise TypeError(f"parameter overrides must be a dict of dotted paths -> values, e.g. "
                             f"{{'arm.load_mass': 1.0}}, got {overrides!r}")

@@ -86,13 +86,21 @@ def symbolic_model(params: ScaraParams = DEFAULT_PARAMS, *, control: str = "volt
                    exact_switches: bool = True) -> SymbolicModel:
     """The CasADi twin of the compiled model for ``params`` and a CONFIG's switches.
 
-    control: "pd" (command = set-point, eq. 15-16) or "voltage" (command = U / limit);
-    widen: the voltage limit is Umax_wide while critical; decelerate: the dec rule's
-    kinematics while critical; critical_rule: "off", "switch" or "forced" (the critical
-    event function); wall: track the wall plane; exact_switches: the PD saturation a
-    located mode (else clipped at every evaluation). The environments use control_mode's
-    control, widen=True, decelerate=False, critical_rule="switch" (with the wall),
-    exact_switches=True (v1, v2)."""
+    The environments use control_mode's control, widen=True, decelerate=False,
+    critical_rule="switch" (with the wall) and exact_switches=True (v1, v2).
+
+    Args:
+        params: the parameter tree (default: the C11 set).
+        control: "pd" (command = set-point, eq. 15-16) or "voltage" (command = U / limit).
+        widen: the voltage limit is Umax_wide while critical.
+        decelerate: the dec rule's kinematics while critical.
+        critical_rule: "off", "switch" or "forced" (the critical event function).
+        wall: track the wall plane.
+        exact_switches: the PD saturation a located mode (else clipped at every evaluation).
+
+    Returns:
+        The SymbolicModel: CasADi functions ``rhs``, ``voltages``, ``events``, ``tip`` and
+        ``free`` (voltages in, currents free), and the ``params`` they were built from."""
     import casadi as ca
 
     if not isinstance(params, ScaraParams):

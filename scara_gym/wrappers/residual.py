@@ -18,7 +18,16 @@ Q, TARGET_ERROR = OBSERVATION_LAYOUT["q"], OBSERVATION_LAYOUT["target_error"]
 
 
 class ResidualSetpoint:
-    """Maps agent outputs r to environment actions, for a batch of raw observations."""
+    """Maps agent outputs r to environment actions, for a batch of raw observations.
+
+    The set-point is target + residual_scale * deadzone(r): the agent acts around the target.
+
+    Args:
+        task: the ScaraTask of the environment the actions are for.
+        residual_scale (sequence of 3 floats): the largest offset from the target per axis
+            [rad, rad, m], each >= 0.
+        deadzone: the share of r's range, in [0, 1), mapped to the target itself.
+    """
 
     def __init__(self, task: ScaraTask, residual_scale, deadzone: float = 0.0) -> None:
         if not 0.0 <= deadzone < 1.0:

@@ -85,7 +85,21 @@ class Shield:
     ``interventions`` counts the steps of the current episode where the backup acted. ``env``
     gives the models' task arguments and, for ``__call__``, the robot; ``filter`` shields any
     task's robot with the same arguments (a vector environment's in training: shielded RL), with
-    ``policy`` None."""
+    ``policy`` None.
+
+    Args:
+        env (gymnasium.Env): the environment whose robot is shielded (its task's arguments make the models).
+        policy (callable | None): a callable obs -> action, or None for ``filter`` alone.
+        params: the nominal model's parameters; None: the episode's own (an exact model).
+        horizon: the most backup steps a rollout may take to come to rest.
+        rest_rate: the joint rates below which the arm is at rest [rad/s, m/s].
+        hold_tolerance: how close axes 1 and 2 must be to the held angles at rest [rad].
+        wall_margin: the clearance from the wall's plane the terminal set keeps [m].
+        climb_margin: how far above the highest wall the backup drives axis 3 [m].
+        robust (str | dict | ParameterRanges | None): parameter ranges to certify the backup for as well (a preset name, a dict
+            path -> (low, high) or a ParameterRanges); None: the nominal model only.
+        robust_samples: parameter sets drawn from the ranges beside their ends.
+        robust_seed: the seed of those draws."""
 
     def __init__(self, env, policy, params: ScaraParams | None = DEFAULT_PARAMS, horizon: int = 200,
                  rest_rate: float = 0.02, hold_tolerance: float = 0.01, wall_margin: float = 0.005,
