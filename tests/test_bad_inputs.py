@@ -130,7 +130,7 @@ CASES = [
     ("env params axis index", env(params={"axes.3.p_gain": 1.0}), ["axes.3.p_gain", "0..2"]),
     ("env params inductance", env(params={"axes.0.inductance": 1e-9}), ["axes.0.inductance", "[1e-06, 10] [H]"]),
     ("env params stiff motor", env(params={"axes.1.resistance": 1e4}), ["axes.1.resistance", "time constant", ">= 1e-05 s"]),
-    ("env params dec", env(params={"obstacle.dec": 0.01}), ["obstacle.dec", "obstacle_avoidance", "DecPolicy"]),
+    ("env params dec", env(params={"obstacle.dec": 0.01}), ["obstacle.dec", "obstacle_avoidance", "DecHeuristic"]),
     ("env params type", env(params="c11"), ["params must be a ScaraParams or a dict"]),
     ("env params text value", env(params={"arm.gravity": "9.81"}), ["arm.gravity", "[0, 100]"]),
     ("env params key type", env(params={1: 2.0}), ["keys must be dotted paths"]),
