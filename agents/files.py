@@ -332,6 +332,15 @@ def _plain(value):
     return json.loads(json.dumps(value, default=str))
 
 
+def _differences(recorded: dict, record: dict) -> list[str]:
+    """What differs between two run records, identity first, then each setting, where both say."""
+    pairs = [(k, recorded[k], record[k]) for k in IDENTITY if k in recorded and k in record]
+    if "settings" in recorded and "settings" in record:
+        old, new = recorded["settings"], record["settings"]
+        pairs += [(k, old.get(k), new.get(k)) for k in sorted(set(old) | set(new))]
+    return [f"{k} {was!r} (this run: {now!r})" for k, was, now in pairs if was != now]
+
+
 def claim_run_folder(folder: str | Path, run: dict, resume: bool, overwrite: bool) -> bool:
     """The gate every trainer passes under the folder's lock before it trains into ``folder``.
     ``run``: what the new run is (:data:`IDENTITY` and ``settings``, the settings a resumed run must
@@ -340,23 +349,18 @@ def claim_run_folder(folder: str | Path, run: dict, resume: bool, overwrite: boo
     otherwise needs ``resume``. Writes run.json; returns True when a run is there to continue."""
     folder = Path(folder)
     record = {"run_format": RUN_FORMAT, **_plain(run)}
-    if holds_run(folder) and overwrite:
+    held = holds_run(folder)
+    if held and overwrite:
         for name in RUN_ENTRIES:
             path = folder / name
             if path.is_dir():
                 shutil.rmtree(path)
             elif path.exists():
                 path.unlink()
-    elif holds_run(folder):
-        recorded = recorded_run(folder)
-        keys = [k for k in (*IDENTITY, "settings") if k in recorded and k in record]
-        settings = [f"{name} {recorded['settings'].get(name)!r} (this run: {record['settings'].get(name)!r})"
-                    for name in sorted(set(recorded.get("settings", {})) | set(record.get("settings", {})))
-                    if "settings" in keys and recorded["settings"].get(name) != record["settings"].get(name)]
-        others = [f"{k} {recorded[k]!r} (this run: {record[k]!r})" for k in keys if k != "settings" and
-                  recorded[k] != record[k]]
-        if others or settings:
-            raise ValueError(f"out: {folder} holds another run ({'; '.join(others + settings)}); give another "
+    elif held:
+        differences = _differences(recorded_run(folder), record)
+        if differences:
+            raise ValueError(f"out: {folder} holds another run ({'; '.join(differences)}); give another "
                              "folder, or overwrite=True (--overwrite) to replace it")
         if not resume:
             raise ValueError(f"out: {folder} holds this run already; resume=True (--resume) continues it (a finished "
