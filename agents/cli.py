@@ -10,6 +10,7 @@
     scara-agents select RUN --out models/NAME
     scara-agents optimal --condition c11
     scara-agents bench
+    scara-agents datasets build scara/c11/expert-v0 --episodes 1000
 
 Each subcommand's ``--help`` says what it does. A user's mistake ends in one line
 ``error: ...`` and exit status 2 (``--debug`` shows the traceback). SB3 model folders are
@@ -27,10 +28,11 @@ import sys
 import warnings
 from pathlib import Path
 
+from agents.algorithms.bc_config import BCConfig
 from agents.algorithms.sb3.hyperparams import load_hyperparams
 from agents.algorithms.sb3.policy import resolve_model
 from agents.algorithms.torch_ppo_config import Config, parse_floats, parse_reward_weights
-from agents.experiments import sweep as sweeps
+from agents.experiments import datasets, sweep as sweeps
 from agents.experiments.checkpoints import select_checkpoint
 from agents.experiments.comparison import SHIELDED, compare_in_parallel
 from agents.experiments.curves import robustness_curves, write_curves
@@ -145,7 +147,7 @@ def _add_train(sub) -> None:
     p.add_argument("--randomize-target", action="store_true",
                    help="ppo-residual runs: targets drawn per episode (the YAML's MODE-random block)")
     p.add_argument("--set", nargs="*", default=[], metavar="NAME=VALUE",
-                   help="hyperparameters to override (YAML block names, or torch PPO Config fields)")
+                   help="hyperparameters to override (YAML block names, or torch PPO Config / BCConfig fields)")
     _add_run_folder_flags(p)
     _add_trust(p)
     p.set_defaults(handler=_train)
@@ -178,11 +180,12 @@ def _train(args, argv) -> Path:
         overrides[key] = value
     hyper = None
     if overrides or args.randomize_target:
-        if run.trainer == "torch-ppo":
-            fields = {f.name: f for f in dataclasses.fields(Config)}
+        if run.trainer in ("torch-ppo", "bc"):
+            config_class, what = (Config, "torch PPO Config") if run.trainer == "torch-ppo" else (BCConfig, "BCConfig")
+            fields = {f.name: f for f in dataclasses.fields(config_class) if f.name not in ("seed", "out")}
             unknown = sorted(set(overrides) - set(fields))
             if unknown:
-                raise UserError(f"--set names {unknown}, which are not torch PPO Config fields; they are {sorted(fields)}")
+                raise UserError(f"--set names {unknown}, which are not {what} fields; they are {sorted(fields)}")
             hyper = {**hyperparams_of(args.name, args.env_id, args.control_mode),
                      **{k: _config_value(fields[k], v) for k, v in overrides.items()}}
         else:
@@ -456,6 +459,39 @@ def _bench(args, argv) -> str:
     return agents_bench.main(args.quick, args.her, args.gpu)
 
 
+def _add_datasets(sub) -> None:
+    p = sub.add_parser("datasets", help="offline datasets in Minari's format (the minari extra)",
+                       description="Build the offline datasets (agents.experiments.datasets: scara/<task>/<tier>-v0) "
+                                   "into Minari's data folder (MINARI_DATASETS_PATH, else ~/.minari/datasets) or --out; "
+                                   "'list' names them, 'build all' builds every one.")
+    p.add_argument("action", choices=("build", "list"))
+    p.add_argument("name", nargs="?", help="a dataset id (scara-agents datasets list), or 'all'")
+    p.add_argument("--episodes", type=int, help="episodes per dataset (default: its own count; medium-replay: "
+                                                "all the medium run's training episodes)")
+    p.add_argument("--out", type=Path, help="the datasets' folder (default: Minari's)")
+    p.add_argument("--runs", type=Path, default=Path("docs/results/runs"),
+                   help="the published runs the experts are picked from (default: docs/results/runs)")
+    p.add_argument("--summary", type=Path, help="with 'all': write the datasets' sizes and build times here (JSON)")
+    p.set_defaults(handler=_datasets)
+
+
+def _datasets(args, argv):
+    if args.action == "list":
+        for name, spec in datasets.DATASETS.items():
+            print(f"{name}  ({spec.episodes} episodes)")
+        return list(datasets.DATASETS)
+    if not args.name:
+        raise UserError("datasets build needs a dataset id or 'all' (scara-agents datasets list names them)")
+    _positive("--episodes", args.episodes)
+    try:
+        import minari  # noqa: F401
+    except ImportError:
+        raise UserError("datasets need Minari: pip install 'scara_gym[datasets]'") from None
+    if args.name == "all":
+        return datasets.build_all(args.episodes, args.out, args.runs, summary=args.summary)
+    return datasets.build(args.name, args.episodes, args.out, args.runs)
+
+
 class _Parser(argparse.ArgumentParser):
     """argparse's parser with its errors in one line (``PROG: error: ...``, exit status 2), as
     the subcommands' own errors are; ``--help`` shows the usage."""
@@ -470,7 +506,7 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--debug", action="store_true", help="show the traceback of an error")
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
     for add in (_add_evaluate, _add_train, _add_torch_ppo, _add_campaign, _add_compare, _add_curves, _add_sweep,
-                _add_select, _add_optimal, _add_bench):
+                _add_select, _add_optimal, _add_bench, _add_datasets):
         add(sub)
     return parser
 

@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import inspect
 import json
+import re
 import sys
 from pathlib import Path
 
@@ -98,8 +99,67 @@ def headline_table(comparison: Path = DOCS / "results" / "comparison.json") -> s
 
 def with_headline(text: str, table: str) -> str:
     """``text`` with the part between the headline markers replaced by ``table``."""
-    start, end = text.index(HEADLINE_START) + len(HEADLINE_START), text.index(HEADLINE_END)
-    return f"{text[:start]}\n{table.rstrip(chr(10))}\n{text[end:]}"
+    return with_part(text, HEADLINE_START, HEADLINE_END, table)
+
+
+DATASETS_START, DATASETS_END = "<!-- datasets table: generated -->", "<!-- end of the datasets table -->"
+SCORES_START, SCORES_END = "<!-- normalized scores: generated -->", "<!-- end of the normalized scores -->"
+SCORE_CONDITIONS = {"c11": "c11-starts", "random-targets": "random-targets"}
+"""dataset task -> the protocol condition whose evaluation scores the policies on it"""
+
+
+def datasets_table(summary: Path = DOCS / "results" / "datasets.json") -> str:
+    """The datasets' sizes, build times, behaviour and reference scores (scara-agents datasets
+    build all --summary)."""
+    record = json.loads(summary.read_text())
+    rows = record["datasets"]
+    lines = ["| dataset | episodes | steps | size [MB] | build [s] | behaviour | ref min / max score |",
+             "|---|---|---|---|---|---|---|"]
+    for r in rows:
+        lines.append(f"| `{r['name']}` | {r['episodes']:,} | {r['steps']:,} | {r['size_mb']:.1f} | {r['seconds']:.0f} | "
+                     f"{r['behaviour']} | {r['ref_min_score']:.1f} / {r['ref_max_score']:.1f} |")
+    lines += ["", "The experts, as picked on the tuning sets (success rate, collision rate and mean time to target "
+              "over the tuning episodes):", ""]
+    for task, expert in record["experts"].items():
+        figures = "; ".join(f"`{re.sub(r'[^:]*/pd/', '', c['policy'])}` {c['success_rate']:.2f} / {c['collision_rate']:.2f} / "
+                            f"{c['mean_time']:.4f} s" for c in expert["candidates"])
+        lines.append(f"- `{task}`: **`{re.sub(r'[^:]*/pd/', '', expert['policy'])}`** (on {expert['tuning_set']}, "
+                     f"{len(expert['tuning_seeds'])} episodes). Candidates: {figures}.")
+    return "\n".join(lines) + "\n"
+
+
+def scores_table(summary: Path = DOCS / "results" / "datasets.json",
+                 comparison: Path = DOCS / "results" / "comparison.json") -> str:
+    """Every policy's D4RL-normalized score, 100 (return - ref min) / (ref max - ref min), on each
+    task from its mean return in the task's protocol condition (the comparison's episodes)."""
+    references = {}
+    for r in json.loads(summary.read_text())["datasets"]:
+        references[r["name"].split("/")[1]] = (r["ref_min_score"], r["ref_max_score"])
+    entries = json.loads(comparison.read_text())["policies"]
+    names = list(dict.fromkeys(e["name"] for e in entries if e["condition"] in SCORE_CONDITIONS.values()))
+    lines = ["| policy | " + " | ".join(f"{task} ({condition})" for task, condition in SCORE_CONDITIONS.items()) + " |",
+             "|---|" + "---|" * len(SCORE_CONDITIONS)]
+    for name in names:
+        cells = []
+        for task, condition in SCORE_CONDITIONS.items():
+            found = [e for e in entries if e["name"] == name and e["condition"] == condition]
+            if not found or "return_mean" not in found[0]:
+                cells.append("-")
+                continue
+            low, high = references[task]
+            score = lambda value: 100.0 * (value - low) / (high - low)  # noqa: E731
+            text = f"{score(found[0]['return_mean']):.1f}"
+            if found[0].get("per_seed"):
+                text += " (" + ", ".join(f"{score(s['return_mean']):.0f}" for s in found[0]["per_seed"]) + ")"
+            cells.append(text)
+        lines.append(f"| {name} | " + " | ".join(cells) + " |")
+    return "\n".join(lines) + "\n"
+
+
+def with_part(text: str, start_marker: str, end_marker: str, part: str) -> str:
+    """``text`` with what lies between the two markers replaced by ``part``."""
+    start, end = text.index(start_marker) + len(start_marker), text.index(end_marker)
+    return f"{text[:start]}\n{part.rstrip(chr(10))}\n{text[end:]}"
 
 
 def pages() -> dict[Path, str]:
@@ -117,6 +177,9 @@ def pages() -> dict[Path, str]:
     table = headline_table()
     for page in (DOCS / "comparison.md", DOCS.parent / "README.md"):
         out[page] = with_headline(page.read_text(), table)
+    page = DOCS / "datasets.md"
+    out[page] = with_part(with_part(page.read_text(), DATASETS_START, DATASETS_END, datasets_table()),
+                          SCORES_START, SCORES_END, scores_table())
     return out
 
 

@@ -12,7 +12,7 @@ ROOT = Path(__file__).resolve().parents[1]
 PACKAGES = ("scara_gym", "agents")
 AGENT_LAYERS = ("agents.files", "agents.policies", "agents.algorithms", "agents.experiments", "agents.cli")
 """the agents' layers, lowest first: each may import the ones before it, never after"""
-OPTIONAL = {"torch", "stable_baselines3", "casadi", "ray", "rliable", "matplotlib", "yaml", "numba.cuda"}
+OPTIONAL = {"torch", "stable_baselines3", "casadi", "ray", "rliable", "matplotlib", "yaml", "numba.cuda", "minari"}
 """third-party packages of the install extras: a module importing one at its top may be imported
 inside a function, so that the core install runs without them"""
 

@@ -360,6 +360,8 @@ def _train(config: Config, resume: bool, hooks: list[Hook] | None) -> dict:
             for hook in hooks:
                 env_action = hook.filter_actions(envs.unwrapped.task, env_action)
             next_obs, reward, terminated, truncated, info = envs.step(env_action)
+            for hook in hooks:
+                hook.on_step(env_action, next_obs, reward, terminated, truncated, info)
             reward = tensor(reward, device)
             terminated, truncated = tensor(terminated, device), tensor(truncated, device)
             episode_return += reward

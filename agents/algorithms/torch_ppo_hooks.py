@@ -1,8 +1,8 @@
 """The single-file PPO's research add-ons, as hooks beside the algorithm.
 
-:func:`agents.algorithms.torch_ppo.train` is plain PPO; it calls each :class:`Hook` at four
-points (the first observations, episodes that end, the actions sent to the environment, the
-minibatch gradient) and knows nothing of what they do. :func:`hooks_for` builds the hooks a
+:func:`agents.algorithms.torch_ppo.train` is plain PPO; it calls each :class:`Hook` at five
+points (the first observations, each step's results, episodes that end, the actions sent to the
+environment, the minibatch gradient) and knows nothing of what they do. :func:`hooks_for` builds the hooks a
 :class:`~agents.algorithms.torch_ppo.Config`'s add-on fields ask for:
 
 - ``demo_resets``: reference state initialization on the optimal reference's path (DemoResets);
@@ -36,6 +36,10 @@ class Hook:
         """After a step where the robots ``rows`` ended their episodes (autoreset: obs are their new
         episodes' first); info is the step's. Returns obs, changed or not."""
         return obs
+
+    def on_step(self, env_actions, next_obs, reward, terminated, truncated, info) -> None:
+        """After every vector step, with what the environment returned (numpy on the CPU env;
+        SameStep autoreset: the ended rows' final observations are in info["final_obs"])."""
 
     def filter_actions(self, task, env_actions: np.ndarray) -> np.ndarray:
         """The actions the environment applies, from the ones the agent chose (mapped)."""

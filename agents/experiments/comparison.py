@@ -13,7 +13,7 @@ drawn and fixed parameter shifts, sensor noise, actuation delay, a rate limit), 
   (the nonlinear MPC, agents.policies.mpc, "voltage" mode, its nominal model, with its solve
   times per control step); and every learned run under ``RUNS/ENV_ID/MODE/NAME/seedN``, one
   entry per registered run over
-  its seeds;
+  its seeds (kind "learned"; "offline" for those tagged so: trained on a dataset, agents.algorithms.bc);
 - behind scara_gym.wrappers.Shield (its model: the nominal parameters): PD and the runs named by
   ``shielded`` (default: those tagged "also-shielded"), as entries "... + shield". Runs trained
   behind the shield (tag "shielded") always act behind it.
@@ -198,7 +198,8 @@ class _ConditionTable:
             for shield in (False, True) if algorithm in shielded else (False,):
                 runs = [learned_episodes(d, self.condition, mode, self.episodes, cache, shield) for d in run_dirs]
                 label = algorithm + ("" if mode == "pd" else f" ({mode})") + (SHIELD_SUFFIX if shield else "")
-                e = self.add(label, "learned", label, mode, runs, [c["seed"] for c in configs],
+                kind = "offline" if "offline" in tags else "learned"
+                e = self.add(label, kind, label, mode, runs, [c["seed"] for c in configs],
                              note=SHIELD_NOTE if shield else "", train_seconds=[training_seconds(c) for c in configs],
                              shielded=shield or "shielded" in tags, tags=tags, run=algorithm)
                 if self.reference is not None:

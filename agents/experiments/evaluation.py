@@ -4,6 +4,7 @@ learned runs' evaluations cached, and the plain evaluation table of ``scara-agen
 Policy specs: ``pd``; ``dec-continue[:d]`` and ``dec-restart[:d]`` (the seed's heuristic with
 trigger distance d [m]); ``ppo:NAME`` (a shipped model, e.g. ``ppo_pd``) or ``ppo:DIR``;
 ``sb3:DIR`` (any SB3 run: PPO, SAC, TD3); ``torchppo:DIR`` (a run of the single-file PPO);
+``bc:DIR`` (a behaviour-cloning run, agents.algorithms.bc);
 ``optimal`` (the minimum-time reference, "voltage" mode, best on the exact ids); ``mpc`` (the
 nonlinear MPC with its defaults, "voltage" mode; agents.policies.mpc); ``shield:SPEC``
 (the policy of SPEC behind scara_gym.wrappers.Shield, e.g. ``shield:pd``).
@@ -32,7 +33,8 @@ from scara_gym.wrappers import Shield
 
 SHIELD_KEY = b"scara_gym.wrappers.Shield with a committed backup, 3 steps at rest, a flushed line, defaults"
 """what a shielded evaluation's cache key says of the shield (changed with the shield's rules)"""
-POLICY_SPECS = "pd, dec-continue[:d], dec-restart[:d], optimal, mpc, ppo:NAME_OR_DIR, sb3:RUN_DIR, torchppo:RUN_DIR, shield:SPEC"
+POLICY_SPECS = ("pd, dec-continue[:d], dec-restart[:d], optimal, mpc, ppo:NAME_OR_DIR, sb3:RUN_DIR, torchppo:RUN_DIR, "
+                "bc:RUN_DIR, shield:SPEC")
 
 
 def make_policy(spec: str, env):
@@ -61,6 +63,12 @@ def make_policy(spec: str, env):
         from agents.algorithms.torch_ppo import TorchPPOPolicy
 
         return TorchPPOPolicy(env, arg)
+    if kind == "bc":
+        if not arg:
+            raise ValueError("bc policies are given as bc:RUN_DIR")
+        from agents.algorithms.bc import BCPolicy
+
+        return BCPolicy(env, arg)
     if kind == "optimal":
         return OptimalPolicy(env)
     if kind == "mpc":
@@ -180,10 +188,15 @@ def _from_arrays(arrays: dict[str, np.ndarray]) -> dict:
 
 
 def learned_policy(env, run_dir: Path, shield: bool = False):
-    """The policy of a finished run: SB3's (model.zip) or the torch PPO's (model.pt); with
+    """The policy of a finished run: SB3's (model.zip), the behaviour cloning's (agents.algorithms.bc)
+    or the torch PPO's (model.pt); with
     ``shield``, behind scara_gym.wrappers.Shield (its model has the nominal parameters)."""
     if (Path(run_dir) / "model.zip").exists():
         policy = SB3Policy(env, run_dir)
+    elif json.loads((Path(run_dir) / "config.json").read_text()).get("algo") == "bc":
+        from agents.algorithms.bc import BCPolicy
+
+        policy = BCPolicy(env, run_dir)
     else:
         from agents.algorithms.torch_ppo import TorchPPOPolicy
 

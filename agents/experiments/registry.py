@@ -25,6 +25,7 @@ TAGS = {
     "demonstrations": "learns from the optimal reference's path (reset states or behaviour cloning)",
     "perturbed-starts": "trained from starts drawn in the protocol's start region (randomize_start)",
     "sensor-noise": "trained with noisy sensors (sensor_noise at the protocol's levels)",
+    "offline": "learns from an offline dataset (agents.experiments.datasets) without acting in the env: its own kind",
     "pilot": "a pilot, not a baseline: trained and logged (docs/experiments.md), left out of the comparison's tables",
 }
 """every tag a run may carry, and what it says"""
@@ -36,7 +37,8 @@ class RunSpec:
 
     name: str
     trainer: str
-    """"sb3" (agents.algorithms.sb3.training) or "torch-ppo" (agents.algorithms.torch_ppo)"""
+    """"sb3" (agents.algorithms.sb3.training), "torch-ppo" (agents.algorithms.torch_ppo) or "bc"
+    (agents.algorithms.bc: behaviour cloning of ``dataset``)"""
     description: str
     sb3_algorithm: str | None = None
     """SB3's algorithm class: "ppo", "sac" or "td3" (trainer "sb3")"""
@@ -45,7 +47,7 @@ class RunSpec:
     variant: str | None = None
     """the YAML block "MODE-VARIANT" instead of "MODE" (trainer "sb3")"""
     fields: dict = field(default_factory=dict)
-    """torch PPO Config fields changed from the defaults (trainer "torch-ppo")"""
+    """torch PPO Config fields changed from the defaults (trainer "torch-ppo"), or BCConfig's (trainer "bc")"""
     base: str | None = None
     """a fine-tune's base run: trained first where missing; both stages' time counts"""
     tags: frozenset[str] = frozenset()
@@ -54,8 +56,10 @@ class RunSpec:
         unknown = sorted(set(self.tags) - set(TAGS))
         if unknown:
             raise ValueError(f"run {self.name!r}: unknown tags {unknown}; the tags are {sorted(TAGS)}")
-        if self.trainer not in ("sb3", "torch-ppo"):
-            raise ValueError(f"run {self.name!r}: trainer must be 'sb3' or 'torch-ppo', got {self.trainer!r}")
+        if self.trainer not in ("sb3", "torch-ppo", "bc"):
+            raise ValueError(f"run {self.name!r}: trainer must be 'sb3', 'torch-ppo' or 'bc', got {self.trainer!r}")
+        if (self.trainer == "bc") != ("offline" in self.tags):
+            raise ValueError(f"run {self.name!r}: the 'bc' trainer and the 'offline' tag go together")
         if (self.base is not None) != ("fine-tune" in self.tags):
             raise ValueError(f"run {self.name!r}: a base run and the 'fine-tune' tag go together")
 
@@ -146,6 +150,14 @@ RUNS = _runs(
             fields={**RESIDUAL, "reward_weights": {**FAST_WEIGHTS, "energy": 0.03}, "shield": True,
                     "total_timesteps": 1_000_000},
             tags=frozenset({"pilot", "engineered", "residual", "energy-aware", "shielded"})),
+    RunSpec("bc-c11-expert", "bc", "behaviour cloning of scara/c11/expert-v0 (agents.experiments.datasets) in the "
+            "residual set-point's space", fields={"dataset": "scara/c11/expert-v0", **RESIDUAL},
+            tags=frozenset({"offline", "residual"})),
+    RunSpec("bc-c11-mixed", "bc", "behaviour cloning of scara/c11/mixed-v0 (the expert's and random episodes) in "
+            "the residual set-point's space", fields={"dataset": "scara/c11/mixed-v0", **RESIDUAL},
+            tags=frozenset({"offline", "residual"})),
+    RunSpec("bc-c11-expert-plain", "bc", "behaviour cloning of scara/c11/expert-v0 in the env's own actions",
+            fields={"dataset": "scara/c11/expert-v0"}, tags=frozenset({"pilot", "offline"})),
 )
 """every registered run, in the campaign's order"""
 

@@ -18,6 +18,7 @@ import shutil
 import time
 from pathlib import Path
 
+from agents.algorithms.bc_config import BCConfig
 from agents.algorithms.sb3.hyperparams import load_hyperparams
 from agents.algorithms.sb3.training import train as train_sb3, train_residual_ppo
 from agents.algorithms.torch_ppo_config import Config
@@ -81,6 +82,11 @@ def hyperparams_of(name: str, env_id: str = TRAINING_ENV_ID, control_mode: str =
     run = spec(name)
     if run.trainer == "sb3":
         return load_hyperparams(run.recipe, env_id, control_mode, run.variant)
+    if run.trainer == "bc":
+        fields = BCConfig(**run.fields).to_dict()
+        for name_ in ("seed", "out"):
+            fields.pop(name_)
+        return fields
     fields = Config(**run.fields).to_dict()
     for name_ in ("env_id", "control_mode", "seed", "out"):
         fields.pop(name_)
@@ -101,6 +107,16 @@ def train_run(name: str, out: Path, seed: int, env_id: str = TRAINING_ENV_ID, co
     if randomize_target and run.recipe != "ppo-residual":
         raise ValueError(f"--randomize-target is for the ppo-residual runs (randomize_target=True); {name} is "
                          "registered for its own targets (the random-targets runs carry the tag)")
+    if run.trainer == "bc":
+        from agents.algorithms.bc import train as train_bc
+
+        if control_mode != "pd":
+            raise ValueError(f"{name} clones a 'pd' mode dataset; train it with --control-mode pd")
+        fields = dict(run.fields) if hyperparams is None else dict(hyperparams)
+        if total_timesteps:  # its budget: Adam steps
+            fields["steps"] = total_timesteps
+        train_bc(BCConfig(**{**fields, "seed": seed, "out": str(out)}), overwrite=overwrite, resume=resume)
+        return Path(out)
     if run.trainer == "torch-ppo":
         return _train_torch_ppo(run, Path(out), seed, env_id, control_mode, total_timesteps, hyperparams, resume,
                                 overwrite)

@@ -70,12 +70,14 @@ def entry(name: str, kind: str, algorithm: str | None, mode: str, condition: str
            "success_rate": float(success.mean()),
            "collision_rate": float(np.concatenate([r["collisions"] for r in runs]).mean()),
            "time_iqm": time_iqm, "time_ci": time_ci,
-           "energy_mean": float(np.mean([r["energy"].mean() for r in runs])), "note": note}
+           "energy_mean": float(np.mean([r["energy"].mean() for r in runs])),
+           "return_mean": float(np.mean([r["return"].mean() for r in runs])), "note": note}
     if seeds is not None:
         row["per_seed"] = [{"seed": s, "success_rate": float(r["success"].mean()),
                             "collision_rate": float(r["collisions"].mean()),
                             "time_mean": float(np.nanmean(r["reach_time"])) if r["success"].any() else None,
-                            "energy_mean": float(r["energy"].mean())} for s, r in zip(seeds, runs)]
+                            "energy_mean": float(r["energy"].mean()),
+                            "return_mean": float(r["return"].mean())} for s, r in zip(seeds, runs)]
         for item, seconds in zip(row["per_seed"], train_seconds or []):
             item["train_seconds"] = seconds
     return row

@@ -9,7 +9,7 @@ import pytest
 from agents.cli import build_parser, run
 
 SUBCOMMANDS = ("evaluate", "train", "torch-ppo", "campaign", "compare", "curves", "sweep", "select", "optimal",
-               "bench")
+               "bench", "datasets")
 
 
 def test_the_parser_has_exactly_the_documented_subcommands():

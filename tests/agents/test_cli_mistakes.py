@@ -32,7 +32,17 @@ MISTAKES = [
     (["evaluate", "--env-id", "Scara-C11-v9"], "--env-id: invalid choice"),
     (["evaluate", "--control-mode", "current"], "--control-mode: invalid choice"),
     (["evaluate", "--no-such-flag"], "unrecognized arguments: --no-such-flag"),
+    (["evaluate", "--policies", "bc:"], "bc policies are given as bc:RUN_DIR"),
+    (["evaluate", "--policies", "bc:/nonexistent"], "/nonexistent"),
+    # datasets
+    (["datasets", "build"], "needs a dataset id or 'all'"),
+    (["datasets", "build", "scara/c12/expert-v0"], "unknown dataset 'scara/c12/expert-v0'"),
+    (["datasets", "build", "scara/c11/random-v0", "--episodes", "0"], "--episodes must be >= 1"),
+    (["datasets", "make"], "invalid choice: 'make'"),
     # train
+    (["train", "bc-c11-expert", "--set", "hidden_sise=3"], "not BCConfig fields"),
+    (["train", "bc-c11-expert", "--set", "steps=0"], "steps must be an integer >= 1"),
+    (["train", "bc-c11-expert", "--control-mode", "voltage"], "clones a 'pd' mode dataset"),
     (["train", "no-such-run"], "invalid choice: 'no-such-run'"),
     (["train", "torch-ppo", "--set", "hidden_sise=3"], "not torch PPO Config fields"),
     (["train", "torch-ppo", "--set", "noequals"], "--set takes NAME=VALUE"),

@@ -23,7 +23,7 @@ HEURISTICS = {v: {"distance": 0.07, "margin_distance": 0.084} for v in ("continu
 """tuned distances for the tests (the real tuning runs in test_tuning)"""
 
 KEYS = {"name", "kind", "algorithm", "seeds", "episodes", "success_rate", "collision_rate", "time_iqm",
-        "time_ci", "energy_mean", "condition"}
+        "time_ci", "energy_mean", "return_mean", "condition"}
 
 
 def test_iqm_and_probability_of_improvement_on_known_scores():

@@ -1,0 +1,168 @@
+"""Behaviour cloning from an offline dataset (Minari's format), in one file.
+
+The offline baseline of the datasets (agents.experiments.datasets): an MLP regresses the
+dataset's actions on its observations (mean squared error, tanh output in [-1, 1], observations
+standardized with the dataset's mean and spread), trained for a fixed number of Adam steps on
+minibatches drawn with the run's seed, as CORL's ``any_percent_bc`` does with the whole dataset.
+Nothing is tuned on an evaluation: the run keeps its last weights. :class:`BCPolicy` acts with
+them.
+
+With ``residual_scale`` the MLP clones in the residual set-point's space of the engineered agents
+(scara_gym.wrappers.residual): its targets are the outputs r the map turns into the recorded
+actions (``ResidualSetpoint.agent_actions``), and a recorded set-point on the target (within
+:data:`ON_TARGET`: the float32 rounding of the recorded observation and action) is r = 0, the
+deadzone's middle. A plain clone cannot succeed here: the 0.001 success band asks its set-point for
+a precision of about 4e-4 action units, and no regression of the whole path gets there. A run folder holds model.pt (weights and normalizer, loaded with weights_only),
+config.json (this Config, the dataset's id and size, the training time) and SHA256SUMS.
+"""
+
+from __future__ import annotations
+
+import json
+import time
+from pathlib import Path
+
+import numpy as np
+import torch
+from torch import nn
+
+from agents.algorithms.bc_config import BCConfig
+from agents.files import (
+    POLICY_FILES,
+    claim_run_folder,
+    exclusive,
+    load_torch,
+    save_torch,
+    verify_digests,
+    write_digests,
+    write_json,
+)
+from scara_gym.envs.task import OBSERVATION_LAYOUT
+from scara_gym.wrappers import ResidualSetpoint
+
+ON_TARGET = 1e-5
+"""[rad, m] a recorded set-point this close to the target is the target (r = 0)"""
+Q, TARGET_ERROR = OBSERVATION_LAYOUT["q"], OBSERVATION_LAYOUT["target_error"]
+
+
+def residual_outputs(mapping: ResidualSetpoint, obs: np.ndarray, actions: np.ndarray) -> np.ndarray:
+    """The residual outputs r in [-1, 1] that ``mapping`` turns into the recorded ``actions``
+    ("pd" mode), with r = 0 where the recorded set-point is the target."""
+    r = mapping.agent_actions(obs, actions)
+    offset = mapping.task.action_to_setpoint(np.asarray(actions, dtype=float)) - (obs[:, Q] + obs[:, TARGET_ERROR])
+    return np.where(np.abs(offset) < ON_TARGET, 0.0, r).astype(np.float32)
+
+
+def transitions(dataset_id: str, config: BCConfig | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """(observations, targets) of every step of a Minari dataset: each recorded action (with
+    ``config.residual_scale``: its residual output, residual_outputs) with the observation it was
+    taken in."""
+    import minari
+
+    try:
+        dataset = minari.load_dataset(dataset_id)
+    except FileNotFoundError:
+        raise FileNotFoundError(f"no dataset {dataset_id!r} in Minari's data folder; build it with "
+                                f"scara-agents datasets build {dataset_id}") from None
+    obs, actions = [], []
+    for episode in dataset.iterate_episodes():
+        obs.append(episode.observations[:-1])
+        actions.append(episode.actions)
+    obs, actions = np.concatenate(obs).astype(np.float32), np.concatenate(actions).astype(np.float32)
+    if config is not None and config.residual_scale is not None:
+        mapping = ResidualSetpoint(dataset.recover_environment().unwrapped.task, config.residual_scale,
+                                   config.residual_deadzone)
+        actions = residual_outputs(mapping, obs, actions)
+    return obs, actions
+
+
+class Actor(nn.Module):
+    """Standardized observation -> MLP -> tanh action."""
+
+    def __init__(self, obs_size: int, action_size: int, hidden: int, layers: int) -> None:
+        super().__init__()
+        sizes = [obs_size] + [hidden] * layers
+        blocks: list[nn.Module] = []
+        for a, b in zip(sizes, sizes[1:]):
+            blocks += [nn.Linear(a, b), nn.ReLU()]
+        self.body = nn.Sequential(*blocks, nn.Linear(sizes[-1], action_size), nn.Tanh())
+        self.register_buffer("mean", torch.zeros(obs_size))
+        self.register_buffer("scale", torch.ones(obs_size))
+
+    def forward(self, obs: torch.Tensor) -> torch.Tensor:
+        return self.body((obs - self.mean) / self.scale)
+
+
+def run_record(config: BCConfig) -> dict:
+    """What a run of ``config`` is, for agents.files.claim_run_folder."""
+    settings = {k: v for k, v in config.to_dict().items() if k not in ("out", "torch_threads")}
+    return {"trainer": "bc", "algo": "bc", "env_id": None, "control_mode": "pd", "seed": config.seed,
+            "settings": settings}
+
+
+def train(config: BCConfig, overwrite: bool = False, resume: bool = False) -> dict:
+    """Train and write the run folder; returns its record (config.json). A run is minutes long
+    and keeps no checkpoint: ``resume`` finds a finished run and leaves it, an unfinished one is
+    trained again."""
+    out = Path(config.out)
+    with exclusive(out):
+        claim_run_folder(out, run_record(config), resume, overwrite)
+        if resume and (out / "model.pt").exists() and (out / "summary.json").exists():
+            return json.loads((out / "config.json").read_text())
+        started = time.perf_counter()
+        if config.torch_threads:
+            torch.set_num_threads(config.torch_threads)
+        torch.manual_seed(config.seed)
+        obs, actions = transitions(config.dataset, config)
+        actor = Actor(obs.shape[1], actions.shape[1], config.hidden_size, config.layers)
+        actor.mean.copy_(torch.as_tensor(obs.mean(0)))
+        actor.scale.copy_(torch.as_tensor(obs.std(0) + 1e-6))
+        optimizer = torch.optim.Adam(actor.parameters(), lr=config.learning_rate)
+        obs_t, actions_t = torch.as_tensor(obs), torch.as_tensor(actions)
+        generator = torch.Generator().manual_seed(config.seed)
+        for _ in range(config.steps):
+            rows = torch.randint(len(obs_t), (config.batch_size,), generator=generator)
+            loss = ((actor(obs_t[rows]) - actions_t[rows]) ** 2).mean()
+            optimizer.zero_grad()
+            loss.backward()
+            optimizer.step()
+        with torch.no_grad():
+            final_loss = float(((actor(obs_t) - actions_t) ** 2).mean())
+        save_torch({"state_dict": actor.state_dict(), "obs_size": obs.shape[1], "action_size": actions.shape[1],
+                    "hidden_size": config.hidden_size, "layers": config.layers}, out / "model.pt")
+        summary = {"train_seconds": time.perf_counter() - started, "transitions": len(obs), "final_loss": final_loss}
+        write_json(out / "summary.json", summary)
+        record = {**config.to_dict(), "algo": "bc", "trainer": "bc", "control_mode": "pd", **summary}
+        write_json(out / "config.json", record)
+        write_digests(out, POLICY_FILES)
+    return record
+
+
+class BCPolicy:
+    """A behaviour-cloning run as an obs -> action policy."""
+
+    def __init__(self, env, run_dir: str | Path) -> None:
+        run_dir = Path(run_dir)
+        if not (run_dir / "model.pt").exists():
+            raise FileNotFoundError(f"no model.pt in {str(run_dir)!r}: give a folder written by agents.algorithms.bc")
+        verify_digests(run_dir)
+        if env.unwrapped.control_mode != "pd":
+            raise ValueError(f"{run_dir} clones 'pd' mode actions, the environment is in "
+                             f"{env.unwrapped.control_mode!r} mode")
+        saved = load_torch(run_dir / "model.pt")
+        self.actor = Actor(saved["obs_size"], saved["action_size"], saved["hidden_size"], saved["layers"])
+        self.actor.load_state_dict(saved["state_dict"])
+        self.actor.eval()
+        config = BCConfig(**{k: v for k, v in json.loads((run_dir / "config.json").read_text()).items()
+                             if k in BCConfig.__dataclass_fields__})
+        self.mapping = None if config.residual_scale is None else \
+            ResidualSetpoint(env.unwrapped.task, config.residual_scale, config.residual_deadzone)
+        self.name = f"bc ({run_dir.name})"
+
+    def reset(self) -> None:
+        pass
+
+    def __call__(self, obs: np.ndarray) -> np.ndarray:
+        with torch.no_grad():
+            output = self.actor(torch.as_tensor(np.asarray(obs, dtype=np.float32))[None])[0].numpy().astype(np.float64)
+        return output if self.mapping is None else self.mapping(obs, output)[0]

@@ -1,0 +1,430 @@
+"""Offline datasets in Minari's format: D4RL-style tiers for the C11 task and for randomized targets.
+
+:data:`DATASETS` names every dataset (``scara/<task>/<tier>-v0``); :func:`build` writes one
+through Minari's own API (``minari.create_dataset_from_buffers``) into Minari's local data
+folder (``MINARI_DATASETS_PATH``, else ``~/.minari/datasets``) or ``out``. Nothing needs the
+network.
+
+| task | environment (``TRAINING_ENV_ID``, "pd" mode) |
+|---|---|
+| ``c11`` | the C11 target, starts drawn from the protocol's start region (``randomize_start=True``) |
+| ``random-targets`` | targets drawn per episode beyond the wall (``randomize_target=True``) |
+
+| tier | episodes of |
+|---|---|
+| ``expert`` | the best safe policy among :data:`EXPERT_CANDIDATES`, picked on the tuning set (:func:`pick_expert`) |
+| ``medium`` | a learned agent part-way through training: the single-file PPO after :data:`MEDIUM_STEPS` steps |
+| ``random`` | uniformly random actions in [-1, 1] |
+| ``medium-replay`` | every episode that training run collected, in training order (its rollouts, stochastic actions) |
+| ``mixed`` | the expert and random actions, alternating episode by episode |
+
+Every seeded episode keeps its reset seed: its actions replayed in
+``dataset.recover_environment()`` from that seed give its observations, rewards and costs bit
+for bit (:func:`replay`). The medium-replay episodes began at the training env's autoresets,
+which take no seed of their own: they are not seeded. Per step the infos keep the safety cost
+(``info["cost"]``: 1 for a step in which the tip entered the wall), the collision, the success
+and the weighted reward terms (they sum to the reward). Seeds: each dataset draws from its own
+band below the protocol's tuning seeds (``DATASET_SEED``), so no dataset episode is a tuning or
+an evaluation episode. The reference scores (``ref_min_score``: the random actions' mean return,
+``ref_max_score``: the expert's) are measured per task on :data:`REFERENCE_SEED`'s band.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import tempfile
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+import gymnasium as gym
+import numpy as np
+
+from agents.experiments.evaluation import make_policy
+from agents.files import write_json
+from scara_gym import __version__
+from scara_gym.benchmark.episodes import run_episodes
+from scara_gym.benchmark.protocol import evaluate, tuning
+from scara_gym.envs.task import REWARD_TERMS
+from scara_gym.model import checks
+from scara_gym.registration import TRAINING_ENV_ID
+
+CONTROL_MODE = "pd"
+TASKS = {
+    "c11": {"randomize_start": True},
+    "random-targets": {"randomize_target": True},
+}
+"""task -> the environment arguments of its datasets (over TRAINING_ENV_ID's, "pd" mode)"""
+TASK_CONDITIONS = {"c11": "c11-starts", "random-targets": "random-targets"}
+"""task -> the protocol condition whose tuning set picks its expert"""
+TIERS = ("expert", "medium", "random", "medium-replay", "mixed")
+DATASET_SEED = 60_000_000
+"""dataset k (DATASETS' order) resets from DATASET_SEED + k * 10^6 on (all below the tuning seeds)"""
+REFERENCE_SEED = 70_000_000
+"""the reference scores' episodes: task k from REFERENCE_SEED + k * 10^6"""
+REFERENCE_EPISODES = 100
+TUNING_EPISODES = 30
+"""the size of the tuning set the expert is picked on"""
+MEDIUM_STEPS = 300_000
+"""the medium agent's training budget (the engineered PPO runs train 1-4M steps)"""
+CODE_PERMALINK = f"scara_gym {__version__}: agents/experiments/datasets.py"
+RUNS = Path("docs/results/runs")
+"""the published runs the expert candidates come from"""
+_learned = "{runs}/" + TRAINING_ENV_ID + "/pd/{name}/seed{seed}"
+EXPERT_CANDIDATES = {
+    "c11": ["shield:pd"] + [f"torchppo:{_learned.format(runs='{runs}', name='torch-ppo-residual-fast-starts', seed=s)}"
+                            for s in range(5)],
+    "random-targets": ["shield:pd"] + [
+        f"{prefix}torchppo:{_learned.format(runs='{runs}', name='torch-ppo-residual-random-replay', seed=s)}"
+        for prefix in ("", "shield:") for s in range(5)],
+}
+"""task -> the policy specs (agents.experiments.evaluation.make_policy) its expert is picked from:
+PD behind the shield, and the published learned runs that do best on the task (alone, and behind
+the shield where they collide); ``{runs}`` is the runs folder"""
+MEDIUM_FIELDS = {
+    "c11": {"residual_scale": (2.5, 2.5, 0.05), "residual_deadzone": 0.5, "randomize_start": True},
+    "random-targets": {"residual_scale": (2.5, 2.5, 0.05), "residual_deadzone": 0.5, "randomize_target": True},
+}
+"""task -> the medium agent's torch PPO Config fields: the engineered residual set-point on the
+task's environment and its own reward, so that its rollouts' rewards are the dataset's"""
+
+
+@dataclass(frozen=True)
+class DatasetSpec:
+    """One dataset of the set: its task, its tier and its default size."""
+
+    task: str
+    tier: str
+    episodes: int
+    index: int
+
+    @property
+    def name(self) -> str:
+        return f"scara/{self.task}/{self.tier}-v0"
+
+    @property
+    def seed(self) -> int:
+        return DATASET_SEED + self.index * 10**6
+
+
+DATASETS = {s.name: s for s in (DatasetSpec(task, tier, 1000, k) for k, (task, tier) in
+                                enumerate((t, tier) for t in TASKS for tier in TIERS))}
+"""every dataset of the set by its Minari id"""
+
+
+def get_dataset(name: str) -> DatasetSpec:
+    """The dataset ``name`` (ValueError listing the names otherwise)."""
+    if name not in DATASETS:
+        raise ValueError(f"unknown dataset {name!r}; the datasets are {sorted(DATASETS)}")
+    return DATASETS[name]
+
+
+def make_env(task: str) -> gym.Env:
+    """The environment of a task's datasets (what recover_environment() builds again)."""
+    return gym.make(TRAINING_ENV_ID, control_mode=CONTROL_MODE, **TASKS[task])
+
+
+class RandomActions:
+    """Uniformly random actions in [-1, 1] from one seeded generator (the recorded actions, not
+    the generator, are what a replay uses)."""
+
+    name = "random"
+
+    def __init__(self, env, seed: int) -> None:
+        self.shape = env.action_space.shape
+        self.rng = np.random.default_rng(seed)
+
+    def reset(self) -> None:
+        pass
+
+    def __call__(self, obs) -> np.ndarray:
+        return self.rng.uniform(-1.0, 1.0, self.shape)
+
+
+class Alternating:
+    """The mixed tier's behaviour: the policies in turn, one episode each."""
+
+    def __init__(self, *policies) -> None:
+        self.policies, self.episode = policies, -1
+        self.name = " / ".join(p.name for p in policies)
+
+    def reset(self) -> None:
+        self.episode += 1
+        self.policies[self.episode % len(self.policies)].reset()
+
+    def __call__(self, obs) -> np.ndarray:
+        return self.policies[self.episode % len(self.policies)](obs)
+
+
+def episode_buffers(env, policy, seeds) -> list:
+    """One Minari EpisodeBuffer per seed: the policy's episode from ``env.reset(seed=seed)``, with
+    the step infos kept (the reset's row of each holds zeros)."""
+    from minari.data_collector import EpisodeBuffer
+
+    buffers = []
+    for number, seed in enumerate(seeds):
+        obs, _ = env.reset(seed=int(seed))
+        policy.reset()
+        observations, actions, rewards, terminations, truncations = [obs], [], [], [], []
+        infos = {"cost": [0.0], "collision": [False], "is_success": [False], "time": [0.0],
+                 "reward_terms": {term: [0.0] for term in REWARD_TERMS}}
+        while True:
+            action = np.asarray(policy(obs), dtype=np.float32)
+            obs, reward, terminated, truncated, info = env.step(action)
+            observations.append(obs)
+            actions.append(action)
+            rewards.append(reward)
+            terminations.append(terminated)
+            truncations.append(truncated)
+            _append_info(infos, info)
+            if terminated or truncated:
+                break
+        buffers.append(EpisodeBuffer(id=number, seed=int(seed), observations=np.array(observations),
+                                     actions=np.array(actions), rewards=rewards, terminations=terminations,
+                                     truncations=truncations, infos=_as_arrays(infos)))
+    return buffers
+
+
+def _append_info(infos: dict, info: dict) -> None:
+    infos["cost"].append(float(info["cost"]))
+    infos["collision"].append(bool(info["collision"]))
+    infos["is_success"].append(bool(info["is_success"]))
+    infos["time"].append(float(info["time"]))
+    for term in REWARD_TERMS:
+        infos["reward_terms"][term].append(float(info["reward_terms"][term]))
+
+
+def _as_arrays(infos: dict) -> dict:
+    return {k: (_as_arrays(v) if isinstance(v, dict) else np.asarray(v)) for k, v in infos.items()}
+
+
+def pick_expert(task: str, runs: Path = RUNS, episodes: int = TUNING_EPISODES) -> dict:
+    """The task's expert: among EXPERT_CANDIDATES, those without a collision on the tuning set
+    of the task's condition (scara_gym.benchmark.protocol.tuning: never an evaluation seed), the
+    highest success rate, then the shortest mean time to target. Returns the record: the spec,
+    and every candidate's figures."""
+    condition = tuning(TASK_CONDITIONS[task], episodes)
+    figures = []
+    for spec in EXPERT_CANDIDATES[task]:
+        spec = spec.format(runs=runs)
+        result = evaluate(condition, lambda env, s=spec: make_policy(s, env), CONTROL_MODE)
+        reach = result["reach_time"][result["success"]]
+        figures.append({"policy": spec, "success_rate": float(np.mean(result["success"])),
+                        "collision_rate": float(np.mean(result["collisions"])),
+                        "mean_time": float(reach.mean()) if reach.size else float("inf")})
+    safe = [f for f in figures if f["collision_rate"] == 0.0]
+    if not safe:
+        raise RuntimeError(f"no expert candidate of {task!r} is collision-free on the tuning set: {figures}")
+    best = max(safe, key=lambda f: (f["success_rate"], -f["mean_time"]))
+    return {"policy": best["policy"], "rule": "no collision on the tuning set, then the highest success rate, "
+            "then the shortest mean time", "tuning_set": condition.name, "tuning_seeds": condition.seeds(),
+            "candidates": figures}
+
+
+def rollout_recorder():
+    """A torch PPO hook (agents.algorithms.torch_ppo_hooks.Hook: built here, torch being the
+    train extra's) that keeps every episode the training rollouts complete, as EpisodeBuffers
+    (the medium-replay tier) in its ``episodes``."""
+    from minari.data_collector import EpisodeBuffer
+
+    from agents.algorithms.torch_ppo_hooks import Hook
+
+    def new(first_obs) -> dict:
+        return {"observations": [first_obs], "actions": [], "rewards": [], "terminations": [], "truncations": [],
+                "infos": {"cost": [0.0], "collision": [False], "is_success": [False], "time": [0.0],
+                          "reward_terms": {term: [0.0] for term in REWARD_TERMS}}}
+
+    class RolloutRecorder(Hook):
+        def __init__(self) -> None:
+            self.episodes: list = []
+            self.open: list[dict] = []
+
+        def on_start(self, obs: np.ndarray) -> np.ndarray:
+            self.open = [new(row) for row in np.asarray(obs)]
+            return obs
+
+        def on_step(self, env_actions, next_obs, reward, terminated, truncated, info) -> None:
+            for row, episode in enumerate(self.open):
+                ended = bool(terminated[row] or truncated[row])
+                episode["observations"].append(info["final_obs"][row] if ended else next_obs[row])
+                episode["actions"].append(np.asarray(env_actions[row], dtype=np.float32))
+                episode["rewards"].append(float(reward[row]))
+                episode["terminations"].append(bool(terminated[row]))
+                episode["truncations"].append(bool(truncated[row]))
+                _append_info(episode["infos"], {
+                    "cost": info["cost"][row], "collision": info["collision"][row],
+                    "is_success": info["is_success"][row], "time": info["time"][row],
+                    "reward_terms": {term: values[row] for term, values in info["reward_terms"].items()}})
+                if ended:
+                    self.episodes.append(EpisodeBuffer(
+                        id=len(self.episodes), observations=np.array(episode["observations"]),
+                        actions=np.array(episode["actions"]), rewards=episode["rewards"],
+                        terminations=episode["terminations"], truncations=episode["truncations"],
+                        infos=_as_arrays(episode["infos"])))
+                    self.open[row] = new(next_obs[row])
+
+    return RolloutRecorder()
+
+
+def train_medium(task: str, folder: Path, seed: int = 0) -> tuple[Path, list]:
+    """The task's medium agent (the single-file PPO for MEDIUM_STEPS steps, seed ``seed``) trained
+    into ``folder``, and every episode its rollouts completed."""
+    from agents.algorithms.torch_ppo import Config, train
+
+    recorder = rollout_recorder()
+    config = Config(**MEDIUM_FIELDS[task], env_id=TRAINING_ENV_ID, control_mode=CONTROL_MODE, seed=seed,
+                    total_timesteps=MEDIUM_STEPS, torch_threads=1, out=str(folder))
+    train(config, overwrite=True, hooks=[recorder])
+    return folder, recorder.episodes
+
+
+def reference_scores(task: str, expert: str) -> tuple[float, float]:
+    """(random actions' mean return, the expert's) over REFERENCE_EPISODES episodes of the task."""
+    seeds = list(range(REFERENCE_SEED + list(TASKS).index(task) * 10**6,
+                       REFERENCE_SEED + list(TASKS).index(task) * 10**6 + REFERENCE_EPISODES))
+    env = make_env(task)
+    low = run_episodes(env, RandomActions(env, seeds[0]), seeds)["return"].mean()
+    high = run_episodes(env, make_policy(expert, env), seeds)["return"].mean()
+    return float(low), float(high)
+
+
+def build(name: str, episodes: int | None = None, out: Path | None = None, runs: Path = RUNS,
+          work: Path | None = None, verbose: bool = True, expert: dict | None = None,
+          scores: tuple[float, float] | None = None, medium: tuple[Path, list] | None = None):
+    """Write the dataset ``name`` (DATASETS) with ``episodes`` episodes (default: its own count;
+    medium-replay: the first of the medium run's training episodes, default all) into Minari's
+    data folder, or ``out`` (it becomes MINARI_DATASETS_PATH). runs: the published runs the
+    expert comes from; work: where the medium agent trains (default: a temporary folder);
+    expert: pick_expert's record and scores: reference_scores' (measured here where None; the
+    reference max score is the expert's, so every tier needs it); medium: train_medium's result
+    for the medium tiers (trained here where None). Returns the MinariDataset."""
+    spec = get_dataset(name)
+    count = spec.episodes if episodes is None else checks.integer("episodes", episodes, 1, 10**6)
+    if out is not None:
+        os.environ["MINARI_DATASETS_PATH"] = str(Path(out).resolve())
+    _refuse_existing(name)  # before any work
+    started = time.perf_counter()
+    env = make_env(spec.task)
+    seeds = list(range(spec.seed, spec.seed + count))
+    expert = expert or pick_expert(spec.task, runs)
+    low, high = scores or reference_scores(spec.task, expert["policy"])
+    record: dict = {"package": "scara_gym", "version": __version__, "env_id": TRAINING_ENV_ID,
+                    "env_kwargs": {"control_mode": CONTROL_MODE, **TASKS[spec.task]}, "task": spec.task,
+                    "tier": spec.tier, "first_seed": None if spec.tier == "medium-replay" else seeds[0],
+                    "expert": expert}
+    with tempfile.TemporaryDirectory() as scratch:
+        if spec.tier == "random":
+            policy = RandomActions(env, spec.seed)
+        elif spec.tier == "expert":
+            policy = make_policy(expert["policy"], env)
+        elif spec.tier == "mixed":
+            policy = Alternating(make_policy(expert["policy"], env), RandomActions(env, spec.seed))
+        else:  # medium, medium-replay: one training run
+            folder, rollouts = medium or train_medium(spec.task, Path(work or scratch) / f"{spec.task}-medium")
+            record["medium_run"] = {**{k: list(v) if isinstance(v, tuple) else v
+                                       for k, v in MEDIUM_FIELDS[spec.task].items()},
+                                    "total_timesteps": MEDIUM_STEPS, "seed": 0}
+            policy = make_policy(f"torchppo:{folder}", env)
+        record["behaviour"] = "torch-ppo rollouts (stochastic)" if spec.tier == "medium-replay" else policy.name
+        buffers = (rollouts[:count] if episodes is not None else rollouts) if spec.tier == "medium-replay" \
+            else episode_buffers(env, policy, seeds)
+        description = json.dumps(record)
+        dataset = _create_atomically(name, dict(
+            buffer=buffers, env=env, eval_env=env, algorithm_name=f"{spec.tier}: {record['behaviour']}",
+            author="scara_gym", author_email="scara_gym's issue tracker", code_permalink=CODE_PERMALINK,
+            ref_min_score=low, ref_max_score=high, num_episodes_average_score=REFERENCE_EPISODES,
+            description=description, data_format="hdf5", requirements=[f"scara_gym=={__version__}"]))
+    if verbose:
+        print(f"{name}: {dataset.total_episodes} episodes, {dataset.total_steps} steps, "
+              f"{dataset.storage.get_size():.1f} MB, {time.perf_counter() - started:.0f} s", flush=True)
+    return dataset
+
+
+def datasets_root() -> Path:
+    """Minari's local data folder: MINARI_DATASETS_PATH, else ~/.minari/datasets."""
+    return Path(os.environ.get("MINARI_DATASETS_PATH") or Path.home() / ".minari" / "datasets")
+
+
+def _refuse_existing(name: str) -> None:
+    final = datasets_root() / name
+    if final.exists():
+        raise ValueError(f"dataset {name} exists already in {datasets_root()}; remove {final} to build it again")
+
+
+def _create_atomically(name: str, arguments: dict):
+    """minari.create_dataset_from_buffers(name, **arguments), written in a staging folder beside
+    the dataset's place and renamed into it whole: a crash leaves no half dataset under its id."""
+    import minari
+    from minari.namespace import create_namespace, list_local_namespaces
+
+    root = datasets_root()
+    final = root / name
+    _refuse_existing(name)
+    root.mkdir(parents=True, exist_ok=True)
+    with tempfile.TemporaryDirectory(dir=root, prefix=".partial-") as staging:
+        os.environ["MINARI_DATASETS_PATH"] = staging
+        try:
+            minari.create_dataset_from_buffers(dataset_id=name, **arguments)
+        finally:
+            os.environ["MINARI_DATASETS_PATH"] = str(root)
+        parts = name.split("/")
+        for depth in range(1, len(parts)):  # the namespaces scara and scara/TASK, in the real folder
+            namespace = "/".join(parts[:depth])
+            if namespace not in list_local_namespaces():
+                create_namespace(namespace)
+        final.parent.mkdir(parents=True, exist_ok=True)
+        os.replace(Path(staging) / name, final)
+    return minari.load_dataset(name)
+
+
+def replay(dataset, episodes: int | None = None) -> int:
+    """Replay the seeded episodes of a MinariDataset: each one's actions in
+    ``dataset.recover_environment()`` from its recorded seed; AssertionError at the first
+    observation, reward, termination or cost that differs in any bit. Returns how many were replayed."""
+    env = dataset.recover_environment()
+    metadata = list(dataset.storage.get_episode_metadata(range(dataset.total_episodes)))
+    replayed = 0
+    for episode, meta in zip(dataset.iterate_episodes(), metadata):
+        if meta.get("seed") is None or (episodes is not None and replayed >= episodes):
+            continue
+        obs, _ = env.reset(seed=int(meta["seed"]))
+        assert np.array_equal(obs, episode.observations[0]), f"episode {episode.id}: the first observation differs"
+        for step, action in enumerate(episode.actions):
+            obs, reward, terminated, truncated, info = env.step(action)
+            same = (np.array_equal(obs, episode.observations[step + 1]) and reward == episode.rewards[step]
+                    and terminated == episode.terminations[step] and truncated == episode.truncations[step]
+                    and info["cost"] == episode.infos["cost"][step + 1])
+            assert same, f"episode {episode.id}, step {step}: the replay differs from the dataset"
+        replayed += 1
+    return replayed
+
+
+def build_all(episodes: int | None = None, out: Path | None = None, runs: Path = RUNS,
+              work: Path | None = None, summary: Path | None = None) -> list[dict]:
+    """Every dataset of DATASETS (each task's expert picked once); rows of name, episodes, steps,
+    size [MB] and build time [s], written as JSON to ``summary`` where given."""
+    rows, experts, scores, mediums = [], {}, {}, {}
+    with tempfile.TemporaryDirectory() as scratch:
+        for name, spec in DATASETS.items():
+            started = time.perf_counter()
+            if spec.task not in experts:
+                experts[spec.task] = pick_expert(spec.task, runs)
+                scores[spec.task] = reference_scores(spec.task, experts[spec.task]["policy"])
+            if spec.tier in ("medium", "medium-replay") and spec.task not in mediums:
+                mediums[spec.task] = train_medium(spec.task, Path(work or scratch) / f"{spec.task}-medium")
+            dataset = build(name, episodes, out, runs, work, expert=experts[spec.task], scores=scores[spec.task],
+                            medium=mediums.get(spec.task))
+            rows.append(_row(dataset, time.perf_counter() - started))
+            if summary is not None:
+                write_json(summary, {"datasets": rows, "experts": experts})
+    return rows
+
+
+def _row(dataset, seconds: float) -> dict:
+    metadata = dataset.storage.metadata
+    return {"name": dataset.id, "episodes": dataset.total_episodes, "steps": dataset.total_steps,
+            "size_mb": round(dataset.storage.get_size(), 2), "seconds": round(seconds, 1),
+            "ref_min_score": metadata["ref_min_score"], "ref_max_score": metadata["ref_max_score"],
+            "behaviour": metadata["algorithm_name"]}
+

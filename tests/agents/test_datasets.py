@@ -1,0 +1,154 @@
+"""The offline datasets (agents.experiments.datasets) and the behaviour cloning (agents.algorithms.bc)."""
+
+import json
+
+import numpy as np
+import pytest
+
+minari = pytest.importorskip("minari")
+
+from agents.algorithms.bc import BCPolicy, train as train_bc  # noqa: E402
+from agents.algorithms.bc_config import BCConfig  # noqa: E402
+from agents.cli import run  # noqa: E402
+from agents.experiments import datasets  # noqa: E402
+from agents.experiments.registry import RUNS, RunSpec, tagged  # noqa: E402
+from scara_gym.benchmark.protocol import TRAINING_SEED_LIMIT, TUNING_SEED  # noqa: E402
+from scara_gym.envs.task import REWARD_TERMS  # noqa: E402
+
+EXPERT = {"policy": "shield:pd"}  # where a test needs an expert but not the picking
+
+
+@pytest.fixture
+def minari_folder(tmp_path, monkeypatch):
+    folder = tmp_path / "minari"
+    folder.mkdir()
+    monkeypatch.setenv("MINARI_DATASETS_PATH", str(folder))
+    return folder
+
+
+@pytest.mark.slow
+def test_the_random_dataset_built_by_the_command_loads_and_replays_bit_for_bit(minari_folder):
+    run(["datasets", "build", "scara/c11/random-v0", "--episodes", "5"])
+    assert not any(p.name.startswith(".partial") for p in minari_folder.iterdir())  # no staging left
+    dataset = minari.load_dataset("scara/c11/random-v0")
+    assert dataset.total_episodes == 5 and dataset.total_steps == 5 * 300  # random actions never arrive
+    metadata = dataset.storage.metadata
+    record = json.loads(metadata["description"])
+    assert record["version"] and record["env_id"] == dataset.env_spec.id and record["tier"] == "random"
+    assert record["expert"]["tuning_set"] == "c11-starts (tuning)"  # picked on the tuning set
+    assert metadata["ref_min_score"] < metadata["ref_max_score"]
+    assert datasets.replay(dataset) == 5
+    episode = dataset[0]
+    assert set(episode.infos) >= {"cost", "collision", "is_success"}
+    assert set(episode.infos["reward_terms"]) == set(REWARD_TERMS)
+    terms = sum(episode.infos["reward_terms"][t][1:] for t in REWARD_TERMS)
+    np.testing.assert_allclose(terms, episode.rewards, rtol=1e-12, atol=1e-12)  # the terms sum to the reward
+
+
+def test_a_replay_notices_a_changed_action(minari_folder):
+    dataset = datasets.build("scara/random-targets/random-v0", episodes=2, expert=EXPERT, scores=(0.0, 1.0),
+                             verbose=False)
+    assert datasets.replay(dataset) == 2
+    recorded = dataset[0]
+    env = dataset.recover_environment()
+    seed = next(iter(dataset.storage.get_episode_metadata([0])))["seed"]
+    obs, _ = env.reset(seed=int(seed))
+    assert np.array_equal(obs, recorded.observations[0])
+    obs, *_ = env.step(-recorded.actions[0])
+    assert not np.array_equal(obs, recorded.observations[1])  # what replay would have caught
+
+
+def test_a_built_dataset_is_not_overwritten(minari_folder):
+    datasets.build("scara/c11/random-v0", episodes=1, expert=EXPERT, scores=(0.0, 1.0), verbose=False)
+    with pytest.raises(ValueError, match="exists already"):
+        datasets.build("scara/c11/random-v0", episodes=1, expert=EXPERT, scores=(0.0, 1.0), verbose=False)
+
+
+def test_every_dataset_seed_is_a_training_seed_and_the_bands_do_not_overlap():
+    bands = [(s.seed, s.seed + 10**6) for s in datasets.DATASETS.values()]
+    bands.append((datasets.REFERENCE_SEED, datasets.REFERENCE_SEED + len(datasets.TASKS) * 10**6))
+    bands.sort()
+    assert all(a_end <= b_start for (_, a_end), (b_start, _) in zip(bands, bands[1:]))
+    assert bands[-1][1] <= TRAINING_SEED_LIMIT <= TUNING_SEED
+    assert sorted(datasets.DATASETS) == sorted(f"scara/{t}/{tier}-v0" for t in datasets.TASKS for tier in datasets.TIERS)
+
+
+def test_the_mixed_tier_alternates_the_expert_and_random_actions(minari_folder):
+    dataset = datasets.build("scara/c11/mixed-v0", episodes=4, expert=EXPERT, scores=(0.0, 1.0), verbose=False)
+    lengths = [len(e.actions) for e in dataset.iterate_episodes()]
+    successes = [bool(e.infos["is_success"][-1]) for e in dataset.iterate_episodes()]
+    assert successes == [True, False, True, False] and lengths[1] == lengths[3] == 300
+    assert datasets.replay(dataset) == 4
+
+
+def test_the_medium_tiers_come_from_one_short_training_run(minari_folder, tmp_path, monkeypatch):
+    monkeypatch.setattr(datasets, "MEDIUM_STEPS", 2048)
+    medium = datasets.train_medium("c11", tmp_path / "medium")
+    replayed = datasets.build("scara/c11/medium-replay-v0", expert=EXPERT, scores=(0.0, 1.0), medium=medium,
+                              verbose=False)
+    assert replayed.total_episodes == len(medium[1]) > 0
+    for episode in replayed.iterate_episodes():
+        assert len(episode.observations) == len(episode.actions) + 1 == len(episode.infos["cost"])
+        assert episode.terminations[-1] or episode.truncations[-1]
+        assert not np.any(episode.terminations[:-1] | episode.truncations[:-1])
+        terms = sum(episode.infos["reward_terms"][t][1:] for t in REWARD_TERMS)
+        np.testing.assert_allclose(terms, episode.rewards, rtol=1e-6, atol=1e-9)
+    acted = datasets.build("scara/c11/medium-v0", episodes=2, expert=EXPERT, scores=(0.0, 1.0), medium=medium,
+                           verbose=False)
+    assert datasets.replay(acted) == 2
+    assert json.loads(acted.storage.metadata["description"])["medium_run"]["total_timesteps"] == 2048
+
+
+def test_behaviour_cloning_fits_its_dataset_and_is_seeded(minari_folder, tmp_path):
+    datasets.build("scara/c11/expert-v0", episodes=2, expert=EXPERT, scores=(0.0, 1.0), verbose=False)
+
+    def bc(folder, steps):
+        return train_bc(BCConfig(dataset="scara/c11/expert-v0", steps=steps, hidden_size=32, out=str(tmp_path / folder)))
+
+    runs = [bc(f"r{i}", 300) for i in range(2)]
+    assert runs[0]["final_loss"] == runs[1]["final_loss"]  # the same seed, the same weights
+    assert runs[0]["final_loss"] < 0.5 * bc("untrained", 1)["final_loss"]  # a deterministic expert is learnable
+    env = datasets.make_env("c11")
+    policy = BCPolicy(env, tmp_path / "r0")
+    obs, _ = env.reset(seed=0)
+    action = policy(obs)
+    assert action.shape == env.action_space.shape and np.all(np.abs(action) <= 1.0)
+    with pytest.raises(ValueError, match="holds this run already"):
+        bc("r0", 300)
+
+
+def test_residual_cloning_targets_map_back_to_the_recorded_actions(minari_folder):
+    from agents.algorithms.bc import residual_outputs
+    from scara_gym.wrappers import ResidualSetpoint
+
+    dataset = datasets.build("scara/c11/mixed-v0", episodes=2, expert=EXPERT, scores=(0.0, 1.0), verbose=False)
+    mapping = ResidualSetpoint(dataset.recover_environment().unwrapped.task, (2.5, 2.5, 0.05), 0.5)
+    for number, episode in enumerate(dataset.iterate_episodes()):
+        obs, actions = episode.observations[:-1].astype(np.float32), episode.actions
+        r = residual_outputs(mapping, obs, actions)
+        assert np.all(np.abs(r) <= 1.0)
+        inside = np.all(np.abs(r) < 1.0, axis=1)  # set-points within target +- residual_scale: exact round trip
+        np.testing.assert_allclose(mapping(obs, r)[inside], actions[inside], atol=1e-5)
+        on_target = np.all(r == 0.0, axis=1)
+        if number == 0:  # PD behind the shield: the target itself, but where the shield holds back
+            assert 0 < on_target.sum() < len(r)
+        else:  # random set-points are never the target
+            assert not on_target.any()
+
+
+def test_behaviour_cloning_names_a_missing_dataset(minari_folder, tmp_path):
+    with pytest.raises(FileNotFoundError, match="scara-agents datasets build scara/c11/expert-v0"):
+        train_bc(BCConfig(out=str(tmp_path / "bc")))
+
+
+def test_the_offline_runs_are_registered_with_their_trainer_and_tag():
+    assert set(tagged("offline")) == {name for name, s in RUNS.items() if s.trainer == "bc"} != set()
+    for name in tagged("offline"):
+        assert RUNS[name].fields["dataset"] in datasets.DATASETS
+    with pytest.raises(ValueError, match="'bc' trainer and the 'offline' tag"):
+        RunSpec("x", "bc", "x", fields={"dataset": "scara/c11/expert-v0"})
+
+
+def test_datasets_list_names_every_dataset(capsys):
+    assert run(["datasets", "list"]) == list(datasets.DATASETS)
+    assert "scara/random-targets/mixed-v0" in capsys.readouterr().out
