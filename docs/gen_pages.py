@@ -147,7 +147,7 @@ def scores_table(summary: Path = DOCS / "results" / "datasets.json",
                 cells.append("-")
                 continue
             low, high = references[task]
-            score = lambda value: 100.0 * (value - low) / (high - low)  # noqa: E731
+            score = lambda value, low=low, high=high: 100.0 * (value - low) / (high - low)  # noqa: E731
             text = f"{score(found[0]['return_mean']):.1f}"
             if found[0].get("per_seed"):
                 text += " (" + ", ".join(f"{score(s['return_mean']):.0f}" for s in found[0]["per_seed"]) + ")"
