@@ -167,8 +167,7 @@ def episode_buffers(env, policy, seeds) -> list:
         obs, _ = env.reset(seed=int(seed))
         policy.reset()
         observations, actions, rewards, terminations, truncations = [obs], [], [], [], []
-        infos = {"cost": [0.0], "collision": [False], "is_success": [False], "time": [0.0],
-                 "reward_terms": {term: [0.0] for term in REWARD_TERMS}}
+        infos = _empty_infos()
         while True:
             action = np.asarray(policy(obs), dtype=np.float32)
             obs, reward, terminated, truncated, info = env.step(action)
@@ -184,6 +183,12 @@ def episode_buffers(env, policy, seeds) -> list:
                                      actions=np.array(actions), rewards=rewards, terminations=terminations,
                                      truncations=truncations, infos=_as_arrays(infos)))
     return buffers
+
+
+def _empty_infos() -> dict:
+    """An episode's kept infos, with the reset's row (zeros)."""
+    return {"cost": [0.0], "collision": [False], "is_success": [False], "time": [0.0],
+            "reward_terms": {term: [0.0] for term in REWARD_TERMS}}
 
 
 def _append_info(infos: dict, info: dict) -> None:
@@ -232,8 +237,7 @@ def rollout_recorder():
 
     def new(first_obs) -> dict:
         return {"observations": [first_obs], "actions": [], "rewards": [], "terminations": [], "truncations": [],
-                "infos": {"cost": [0.0], "collision": [False], "is_success": [False], "time": [0.0],
-                          "reward_terms": {term: [0.0] for term in REWARD_TERMS}}}
+                "infos": _empty_infos()}
 
     class RolloutRecorder(Hook):
         def __init__(self) -> None:

@@ -82,13 +82,10 @@ def hyperparams_of(name: str, env_id: str = TRAINING_ENV_ID, control_mode: str =
     run = spec(name)
     if run.trainer == "sb3":
         return load_hyperparams(run.recipe, env_id, control_mode, run.variant)
-    if run.trainer == "bc":
-        fields = BCConfig(**run.fields).to_dict()
-        for name_ in ("seed", "out"):
-            fields.pop(name_)
-        return fields
-    fields = Config(**run.fields).to_dict()
-    for name_ in ("env_id", "control_mode", "seed", "out"):
+    config_class, identity = (BCConfig, ("seed", "out")) if run.trainer == "bc" else \
+        (Config, ("env_id", "control_mode", "seed", "out"))
+    fields = config_class(**run.fields).to_dict()
+    for name_ in identity:
         fields.pop(name_)
     return fields
 
