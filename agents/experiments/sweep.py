@@ -90,7 +90,7 @@ def point_hyperparams(algo: str, env_id: str, control_mode: str, point: dict) ->
 
 PLAIN_NAME = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
 PLAIN_VALUE = re.compile(r"[A-Za-z0-9_+-][A-Za-z0-9_.+-]*")
-EPISODE_ARRAYS = ("success", "collisions", "reach_time", "energy")
+EPISODE_ARRAYS = ("success", "collisions", "reach_time", "energy", "return")
 
 
 def task_kwargs(hyper: dict) -> dict:
