@@ -91,7 +91,8 @@ class MPCConfig:
     params: ScaraParams | None = None
     """the model's parameters (None: the nominal robot, DEFAULT_PARAMS)"""
     solver: str = "ipopt"
-    """the NLP solver (CasADi's IPOPT; its structure-exploiting fatrop refuses this problem's layout)"""
+    """the NLP solver: CasADi's IPOPT (the structure-exploiting fatrop was slower on this problem:
+    docs/optimal-and-mpc.md, "Solve time")"""
     solver_options: dict = field(default_factory=dict)
     """further options of the CasADi solver (e.g. {"ipopt.print_level": 5})"""
 
@@ -140,11 +141,14 @@ class MPCPolicy:
         self.reset()
 
     # the problem, built once ------------------------------------------------------------
-    # decision variables stage by stage, [X_k, U_k, XC_k, S_k] for k < horizon, then X_horizon:
-    # the state at the step's start, its voltages, its three collocation states (the last one
-    # is the step's end) and its four slacks (tip below / above its bounds, q3 below / above)
-    STAGE = 9 + 3 + 27 + 4
-    ROWS = 27 + 24 + 9  # constraints per stage: collocation, path, continuity
+    # decision variables: the measured state X_0, then stage by stage [U_k, XC_k, S_k]: the step's
+    # voltages, its three collocation states (the last one is the step's end, the next stage's
+    # start: Radau's last point is the step's end, so no separate state or continuity row) and its
+    # four slacks (tip below / above its bounds, q3 below / above). The currents' limits are
+    # bounds on the collocation states, not constraint rows.
+    HEAD = 9
+    STAGE = 3 + 27 + 4
+    ROWS = 27 + 9  # constraints per stage: collocation, then (clearance, height, approach) per point
 
     def _build(self) -> None:
         import casadi as ca
@@ -154,14 +158,14 @@ class MPCPolicy:
         _, C = radau_coefficients(3)
         target = ca.SX.sym("target", 3)
         wall_x, wall_height, side = ca.SX.sym("wall_x"), ca.SX.sym("wall_height"), ca.SX.sym("side")
-        w = ca.SX.sym("w", self.STAGE * n + 9)
-        stage = [w[self.STAGE * k:self.STAGE * (k + 1)] for k in range(n)]
-        X = [s[0:9] for s in stage] + [w[self.STAGE * n:]]
+        w = ca.SX.sym("w", self.HEAD + self.STAGE * n)
+        stage = [w[self.HEAD + self.STAGE * k:self.HEAD + self.STAGE * (k + 1)] for k in range(n)]
+        X = [w[:self.HEAD]] + [s[21:30] for s in stage]
         weights = ca.DM(self.weights)
         cost, g = 0, []
         for k in range(n):
-            U, S = stage[k][9:12], stage[k][39:43]
-            points = [X[k]] + [stage[k][12 + 9 * j:21 + 9 * j] for j in range(3)]
+            U, S = stage[k][0:3], stage[k][30:34]
+            points = [X[k]] + [stage[k][3 + 9 * j:12 + 9 * j] for j in range(3)]
             for j in range(1, 4):
                 slope = sum(C[r, j] * points[r] for r in range(4))
                 g.append(slope - self.control_dt * model.free(points[j], U))
@@ -169,11 +173,8 @@ class MPCPolicy:
                 q, rates = points[j][:3], points[j][3:6]
                 clearance = side * (model.tip(q)[0] - wall_x)
                 approach = side * ca.jtimes(model.tip(q)[0], q, rates)  # d clearance / dt
-                g.append(ca.vertcat(clearance + S[0], clearance - S[1],
-                                    points[j][2] - wall_height + S[2], points[j][2] - wall_height - S[3],
-                                    approach + c.approach_rate * (clearance - c.wall_margin) + S[0],
-                                    points[j][6:9]))
-            g.append(X[k + 1] - points[3])
+                g.append(ca.vertcat(clearance + S[0] - S[1], points[j][2] - wall_height + S[2] - S[3],
+                                    approach + c.approach_rate * (clearance - c.wall_margin) + S[0]))
             error = X[k + 1][:3] - target
             cost += ca.sum1(weights * error**2)
             cost += c.voltage_weight * ca.sum1((U / self.voltage_limit) ** 2)
@@ -192,10 +193,11 @@ class MPCPolicy:
         limits = np.where(phases[:, None] == BAND, self.wide_limit[None, :], self.voltage_limit[None, :])
         limits[0] = first_limit
         lbx, ubx = np.full((n, self.STAGE), -INF), np.full((n, self.STAGE), INF)
-        lbx[:, 9:12], ubx[:, 9:12] = -limits, limits
-        lbx[:, 39:43] = 0.0
-        lbx[0, :9] = ubx[0, :9] = x0  # the measured state
-        lbx, ubx = np.append(lbx.ravel(), np.full(9, -INF)), np.append(ubx.ravel(), np.full(9, INF))
+        lbx[:, 0:3], ubx[:, 0:3] = -limits, limits
+        for j in range(3):  # the currents at the collocation points
+            lbx[:, 9 + 9 * j:12 + 9 * j], ubx[:, 9 + 9 * j:12 + 9 * j] = -self.current_limit, self.current_limit
+        lbx[:, 30:34] = 0.0
+        lbx, ubx = np.append(x0, lbx.ravel()), np.append(x0, ubx.ravel())  # X_0: the measured state
         lower, upper = [], []
         band = (c.wall_margin, self.critical_distance - c.band_inset)
         for phase in phases:
@@ -206,10 +208,8 @@ class MPCPolicy:
             else:
                 tip, height = (-INF, INF), (c.height_margin, INF)
             approach = -INF if phase == ABOVE else 0.0
-            row_low = [tip[0], -INF, height[0], -INF, approach, *(-self.current_limit)]
-            row_high = [INF, tip[1], INF, height[1], INF, *self.current_limit]
-            lower += [np.zeros(27), row_low * 3, np.zeros(9)]
-            upper += [np.zeros(27), row_high * 3, np.zeros(9)]
+            lower += [np.zeros(27), [tip[0], height[0], approach] * 3]
+            upper += [np.zeros(27), [tip[1], height[1], INF] * 3]
         terminal = np.zeros(4) if phases[-1] != ABOVE else np.full(4, INF)
         lower.append(-terminal)
         upper.append(terminal)
@@ -246,8 +246,8 @@ class MPCPolicy:
         if self.guess is None:
             self.side = 1.0 if obs[WALL_DISTANCE] >= 0 else -1.0
             n = self.config.horizon
-            block = np.concatenate([x0, np.zeros(3), np.tile(x0, 3), np.zeros(4)])
-            self.guess = np.append(np.tile(block, n), x0)
+            block = np.concatenate([np.zeros(3), np.tile(x0, 3), np.zeros(4)])
+            self.guess = np.append(x0, np.tile(block, n))
             passes = self.config.first_passes
         parameters = np.concatenate([target, [wall_x, wall_height, self.side]])
         for _ in range(passes):
@@ -263,24 +263,26 @@ class MPCPolicy:
                 self.failures += 1
             self.guess = np.array(solution["x"]).ravel()
             self.multipliers = (np.array(solution["lam_x"]).ravel(), np.array(solution["lam_g"]).ravel())
-        action = np.clip(self.guess[9:12] / first_limit, -1.0, 1.0)
+        action = np.clip(self.guess[self.HEAD:self.HEAD + 3] / first_limit, -1.0, 1.0)
         self._shift()
         return action
 
     def _shift(self) -> None:
-        """The warm start of the next step: the plan one step on, its last step repeated."""
-        self.guess = self._shifted(self.guess, self.STAGE)
+        """The warm start of the next step: the plan one step on, its last step repeated (X_0 is
+        the measured state, bound at the next solve)."""
+        self.guess = self._shifted(self.guess, self.HEAD, self.STAGE)
         if self.multipliers is not None and self.config.shift_multipliers:
             lam_x, lam_g = self.multipliers
-            self.multipliers = (self._shifted(lam_x, self.STAGE), self._shifted(lam_g, self.ROWS))
+            self.multipliers = (self._shifted(lam_x, self.HEAD, self.STAGE), self._shifted(lam_g, 0, self.ROWS))
         else:
             self.multipliers = None
 
-    def _shifted(self, values: np.ndarray, size: int) -> np.ndarray:
-        """Per-stage blocks of ``size`` moved one stage on, the last repeated, the tail kept."""
+    def _shifted(self, values: np.ndarray, head: int, size: int) -> np.ndarray:
+        """The ``head`` kept, the per-stage blocks of ``size`` after it moved one stage on (the last
+        repeated), the tail kept."""
         n = self.config.horizon
-        stages = values[:size * n].reshape(n, size)
-        return np.concatenate([stages[1:].ravel(), stages[-1], values[size * n:]])
+        stages = values[head:head + size * n].reshape(n, size)
+        return np.concatenate([values[:head], stages[1:].ravel(), stages[-1], values[head + size * n:]])
 
 
 def solve_time_summary(times) -> dict:

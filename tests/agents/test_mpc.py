@@ -51,8 +51,8 @@ def test_the_warm_start_is_the_previous_plan_one_step_on_and_saves_iterations():
     for k in range(20):
         if k >= 10:
             plan = policy.guess.copy()  # the shifted solution this step starts from
-            stage, n = policy.STAGE, SHORT.horizon
-            assert np.array_equal(plan[stage * (n - 2):stage * (n - 1)], plan[stage * (n - 1):stage * n])
+            head, stage, n = policy.HEAD, policy.STAGE, SHORT.horizon
+            assert np.array_equal(plan[head + stage * (n - 2):head + stage * (n - 1)], plan[head + stage * (n - 1):head + stage * n])
             fresh = MPCPolicy(env, MPCConfig(horizon=15, first_passes=1))
             fresh(obs)  # the same state from a constant guess
             cold.append(fresh.solver.stats()["iter_count"])

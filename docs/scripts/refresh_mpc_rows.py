@@ -1,0 +1,58 @@
+"""Re-evaluate the MPC's entries of a published comparison after a change to the MPC alone, and
+rewrite the comparison's JSON and report with them (the other entries are kept as published).
+
+    python docs/scripts/refresh_mpc_rows.py [--results docs/results] [--jobs 2]
+
+Each condition's MPC entry comes from the comparison's own code (``_ConditionTable.mpc``: the same
+episodes, seeds and solve-time summary as ``scara-agents compare``), the targets from
+``target_checks`` and the report from ``comparison_markdown``: only the MPC's evaluation is rerun,
+so that a change to the MPC does not cost the hours of re-evaluating every learned run. The
+figures are not redrawn (they need every entry's first-episode trace).
+"""
+
+import argparse
+import json
+from concurrent.futures import ProcessPoolExecutor
+from pathlib import Path
+
+from agents.experiments.comparison import _ConditionTable
+from agents.experiments.report import comparison_markdown
+from agents.experiments.targets import target_checks
+from scara_gym.benchmark.protocol import get_condition
+
+
+def mpc_entry(arguments: tuple[str, int]) -> dict:
+    name, episodes = arguments
+    table = _ConditionTable(get_condition(name), episodes, verbose=True)
+    table.mpc()
+    return table.entries[0]
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--results", type=Path, default=Path("docs/results"))
+    parser.add_argument("--jobs", type=int, default=2)
+    args = parser.parse_args()
+    path = args.results / "comparison.json"
+    data = json.loads(path.read_text())
+    old = {e["condition"]: e for e in data["policies"] if e["kind"] == "mpc"}
+    work = [(name, old[name]["episodes"]) for name in data["conditions"] if name in old]
+    with ProcessPoolExecutor(args.jobs) as pool:
+        fresh = {e["condition"]: e for e in pool.map(mpc_entry, work)}
+    data["policies"] = [fresh.get(e["condition"], e) if e["kind"] == "mpc" else e for e in data["policies"]]
+    data["targets"] = target_checks(data["policies"])
+    data["mpc_refreshed_by"] = "python docs/scripts/refresh_mpc_rows.py"
+    path.with_suffix(".json.tmp").write_text(json.dumps(data, indent=1))
+    path.with_suffix(".json.tmp").replace(path)
+    (args.results / "comparison.md").write_text(comparison_markdown(data["policies"]))
+    for name, e in fresh.items():
+        before, after = old[name]["solve_time"], e["solve_time"]
+        print(f"{name}: median {before['median'] * 1e3:.1f} -> {after['median'] * 1e3:.1f} ms, p95 "
+              f"{before['p95'] * 1e3:.1f} -> {after['p95'] * 1e3:.1f}, worst {before['worst'] * 1e3:.0f} -> "
+              f"{after['worst'] * 1e3:.0f}; success {old[name]['success_rate']:.3f} -> {e['success_rate']:.3f}, "
+              f"collisions {old[name]['collision_rate']:.3f} -> {e['collision_rate']:.3f}, time IQM "
+              f"{old[name]['time_iqm']:.4f} -> {e['time_iqm']:.4f} s")
+
+
+if __name__ == "__main__":
+    main()
