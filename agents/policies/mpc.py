@@ -148,6 +148,8 @@ class MPCPolicy:
     # bounds on the collocation states, not constraint rows.
     HEAD = 9
     STAGE = 3 + 27 + 4
+    VOLTAGES, SLACKS = slice(0, 3), slice(30, 34)  # within a stage
+    POINTS = (3, 12, 21)  # where each collocation state starts within a stage (the last: the step's end)
     ROWS = 27 + 9  # constraints per stage: collocation, then (clearance, height, approach) per point
 
     def _build(self) -> None:
@@ -160,12 +162,13 @@ class MPCPolicy:
         wall_x, wall_height, side = ca.SX.sym("wall_x"), ca.SX.sym("wall_height"), ca.SX.sym("side")
         w = ca.SX.sym("w", self.HEAD + self.STAGE * n)
         stage = [w[self.HEAD + self.STAGE * k:self.HEAD + self.STAGE * (k + 1)] for k in range(n)]
-        X = [w[:self.HEAD]] + [s[21:30] for s in stage]
+        end = self.POINTS[-1]
+        X = [w[:self.HEAD]] + [s[end:end + 9] for s in stage]
         weights = ca.DM(self.weights)
         cost, g = 0, []
         for k in range(n):
-            U, S = stage[k][0:3], stage[k][30:34]
-            points = [X[k]] + [stage[k][3 + 9 * j:12 + 9 * j] for j in range(3)]
+            U, S = stage[k][self.VOLTAGES], stage[k][self.SLACKS]
+            points = [X[k]] + [stage[k][start:start + 9] for start in self.POINTS]
             for j in range(1, 4):
                 slope = sum(C[r, j] * points[r] for r in range(4))
                 g.append(slope - self.control_dt * model.free(points[j], U))
@@ -193,10 +196,10 @@ class MPCPolicy:
         limits = np.where(phases[:, None] == BAND, self.wide_limit[None, :], self.voltage_limit[None, :])
         limits[0] = first_limit
         lbx, ubx = np.full((n, self.STAGE), -INF), np.full((n, self.STAGE), INF)
-        lbx[:, 0:3], ubx[:, 0:3] = -limits, limits
-        for j in range(3):  # the currents at the collocation points
-            lbx[:, 9 + 9 * j:12 + 9 * j], ubx[:, 9 + 9 * j:12 + 9 * j] = -self.current_limit, self.current_limit
-        lbx[:, 30:34] = 0.0
+        lbx[:, self.VOLTAGES], ubx[:, self.VOLTAGES] = -limits, limits
+        for start in self.POINTS:  # the currents at the collocation points
+            lbx[:, start + 6:start + 9], ubx[:, start + 6:start + 9] = -self.current_limit, self.current_limit
+        lbx[:, self.SLACKS] = 0.0
         lbx, ubx = np.append(x0, lbx.ravel()), np.append(x0, ubx.ravel())  # X_0: the measured state
         lower, upper = [], []
         band = (c.wall_margin, self.critical_distance - c.band_inset)
@@ -263,7 +266,7 @@ class MPCPolicy:
                 self.failures += 1
             self.guess = np.array(solution["x"]).ravel()
             self.multipliers = (np.array(solution["lam_x"]).ravel(), np.array(solution["lam_g"]).ravel())
-        action = np.clip(self.guess[self.HEAD:self.HEAD + 3] / first_limit, -1.0, 1.0)
+        action = np.clip(self.guess[self.HEAD:][self.VOLTAGES] / first_limit, -1.0, 1.0)
         self._shift()
         return action
 

@@ -7,7 +7,8 @@ Each condition's MPC entry comes from the comparison's own code (``_ConditionTab
 episodes, seeds and solve-time summary as ``scara-agents compare``), the targets from
 ``target_checks`` and the report from ``comparison_markdown``: only the MPC's evaluation is rerun,
 so that a change to the MPC does not cost the hours of re-evaluating every learned run. The
-figures are not redrawn (they need every entry's first-episode trace).
+figures are not redrawn (they need every entry's first-episode trace); ``python docs/gen_pages.py``
+then regenerates the tables the docs and the README take from the JSON.
 """
 
 import argparse
@@ -18,6 +19,7 @@ from pathlib import Path
 from agents.experiments.comparison import _ConditionTable
 from agents.experiments.report import comparison_markdown
 from agents.experiments.targets import target_checks
+from agents.files import write_atomic, write_json
 from scara_gym.benchmark.protocol import get_condition
 
 
@@ -42,9 +44,8 @@ def main() -> None:
     data["policies"] = [fresh.get(e["condition"], e) if e["kind"] == "mpc" else e for e in data["policies"]]
     data["targets"] = target_checks(data["policies"])
     data["mpc_refreshed_by"] = "python docs/scripts/refresh_mpc_rows.py"
-    path.with_suffix(".json.tmp").write_text(json.dumps(data, indent=1))
-    path.with_suffix(".json.tmp").replace(path)
-    (args.results / "comparison.md").write_text(comparison_markdown(data["policies"]))
+    write_json(path, data, indent=1)
+    write_atomic(args.results / "comparison.md", comparison_markdown(data["policies"]))
     for name, e in fresh.items():
         before, after = old[name]["solve_time"], e["solve_time"]
         print(f"{name}: median {before['median'] * 1e3:.1f} -> {after['median'] * 1e3:.1f} ms, p95 "
