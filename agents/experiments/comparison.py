@@ -115,6 +115,14 @@ def compare(runs_root: Path | None = Path("runs/baselines"), conditions: list[st
     return entries, traces
 
 
+MPC_ROWS = (
+    ("mpc", "voltage", "nonlinear MPC on the nominal model (agents.policies.mpc), IPOPT every control step"),
+    ("mpc (pd)", "pd", "the same MPC in the \"pd\" mode: the set-point for which the PD law gives its voltages "
+                       "at the step's start"),
+)
+"""the MPC's comparison rows: (label, control mode, note)"""
+
+
 class _ConditionTable:
     """The entries and first-episode traces of one condition, as they are added."""
 
@@ -184,11 +192,11 @@ class _ConditionTable:
                          note="minimum-time voltages held over the control steps (agents.policies.optimal)")
 
     def mpc(self) -> None:
-        """The nonlinear MPC with its nominal model, and its solve times."""
-        result = mpc_episodes(self.condition, self.episodes, self.cache)
-        e = self.add("mpc", "mpc", None, "voltage", [result], None,
-                     note="nonlinear MPC on the nominal model (agents.policies.mpc), IPOPT every control step")
-        e["solve_time"] = result["solve_time"]
+        """The nonlinear MPC with its nominal model in both control modes, and its solve times."""
+        for label, mode, note in MPC_ROWS:
+            result = mpc_episodes(self.condition, self.episodes, self.cache, mode=mode)
+            e = self.add(label, "mpc", None, mode, [result], None, note=note)
+            e["solve_time"] = result["solve_time"]
 
     def learned(self, groups: dict, cache, shielded) -> None:
         """Every learned run's seeds (and behind the shield where ``shielded`` names it)."""

@@ -148,11 +148,12 @@ MPC_SOURCES = (mpc_module, symbolic_module)
 
 
 def mpc_episodes(condition: Condition, episodes: int | None = None, cache: Path | None = None,
-                 config: MPCConfig | None = None) -> dict:
-    """The MPC's episodes in a protocol condition ("voltage" mode), with every solve's time
-    ("solve_times" [s]) and their summary ("solve_time"), from ``cache`` where it holds them
-    (cached_evaluation: the MPC's and the symbolic model's source, its configuration, the
-    condition and seeds). config: the MPC's (None: its defaults)."""
+                 config: MPCConfig | None = None, mode: str = "voltage") -> dict:
+    """The MPC's episodes in a protocol condition, with every solve's time ("solve_times" [s])
+    and their summary ("solve_time"), from ``cache`` where it holds them (cached_evaluation: the
+    MPC's and the symbolic model's source, its configuration, the control mode, the condition
+    and seeds). config: the MPC's (None: its defaults); mode: the environment's control mode
+    ("voltage": the MPC commands voltages, "pd": set-points)."""
     config = MPCConfig() if config is None else config
     policies: list[MPCPolicy] = []
 
@@ -161,13 +162,13 @@ def mpc_episodes(condition: Condition, episodes: int | None = None, cache: Path 
             policies.append(MPCPolicy(env, config))
             return policies[-1]
 
-        result = evaluate_condition(condition, factory, "voltage", episodes)
+        result = evaluate_condition(condition, factory, mode, episodes)
         result.pop("condition")
         result["solve_times"] = np.asarray(policies[0].solve_times)
         result["solver_failures"] = np.asarray(policies[0].failures)
         return result
 
-    description = ["mpc", dataclasses.asdict(config), *condition_description(condition, episodes)]
+    description = ["mpc", dataclasses.asdict(config), mode, *condition_description(condition, episodes)]
     result = cached_evaluation(cache, "mpc", MPC_SOURCES, description, run)
     result["solve_time"] = {**solve_time_summary(result["solve_times"]), "failures": int(result["solver_failures"])}
     return result

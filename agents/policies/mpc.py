@@ -2,6 +2,7 @@
 every control step, on the symbolic model (:mod:`scara_gym.model.symbolic`).
 
     scara-agents evaluate --policies mpc --control-mode voltage --condition c11-starts
+    scara-agents evaluate --policies mpc --control-mode pd --condition c11-starts
 
 The problem, on the environment's control grid (``MPCConfig``):
 
@@ -33,6 +34,15 @@ The wall's plane and height are read from the observation (``wall_distance``,
 (``params``: the nominal robot unless given, so that a shifted robot is a model mismatch).
 Each solve's wall-clock time is kept in ``solve_times``, the solves IPOPT did not converge in
 ``failures`` (the plan it stopped at is used).
+
+In a "pd"-mode environment the MPC plans the same voltages and commands the set-point for which
+the PD law gives them at the step's start (``ScaraTask.pd_setpoint``: a saturated voltage asks
+for a set-point past saturation). Within the step the law's voltage then follows the state
+(P q' + D q'' volts per second where it is not saturated), so the plan is applied exactly only
+where it saturates; the next step's solve starts from the measured state. Planning the
+set-points themselves, with the saturated law inside the collocation, was tried and dropped:
+where the law saturates its voltage does not depend on the set-point, a degenerate problem on
+which IPOPT stalled (docs/optimal-and-mpc.md, "The pd mode").
 """
 
 from __future__ import annotations
@@ -112,15 +122,13 @@ class MPCConfig:
 
 
 class MPCPolicy:
-    """Nonlinear MPC in a "voltage"-mode environment (module docstring)."""
+    """Nonlinear MPC in a "voltage"- or "pd"-mode environment (module docstring)."""
 
     name = "mpc"
 
     def __init__(self, env, config: MPCConfig | None = None) -> None:
         self.env = env.unwrapped
-        if self.env.control_mode != "voltage":
-            raise ValueError("the MPC commands voltages: it needs control_mode='voltage', the environment is in "
-                             f"{self.env.control_mode!r} mode")
+        self.mode = self.env.control_mode
         self.config = config = MPCConfig() if config is None else config
         self.params = config.params if config.params is not None else DEFAULT_PARAMS
         obstacle = self.params.obstacle
@@ -267,6 +275,8 @@ class MPCPolicy:
             self.guess = np.array(solution["x"]).ravel()
             self.multipliers = (np.array(solution["lam_x"]).ravel(), np.array(solution["lam_g"]).ravel())
         action = np.clip(self.guess[self.HEAD:][self.VOLTAGES] / first_limit, -1.0, 1.0)
+        if self.mode == "pd":  # the set-point for which the PD law gives these voltages at the step's start
+            action = np.clip(self.env.task.setpoint_to_action(self.env.task.pd_setpoint(obs, action)), -1.0, 1.0)
         self._shift()
         return action
 

@@ -23,11 +23,11 @@ from agents.files import write_atomic, write_json
 from scara_gym.benchmark.protocol import get_condition
 
 
-def mpc_entry(arguments: tuple[str, int]) -> dict:
+def mpc_entries(arguments: tuple[str, int]) -> list[dict]:
     name, episodes = arguments
     table = _ConditionTable(get_condition(name), episodes, verbose=True)
     table.mpc()
-    return table.entries[0]
+    return table.entries
 
 
 def main() -> None:
@@ -37,22 +37,29 @@ def main() -> None:
     args = parser.parse_args()
     path = args.results / "comparison.json"
     data = json.loads(path.read_text())
-    old = {e["condition"]: e for e in data["policies"] if e["kind"] == "mpc"}
-    work = [(name, old[name]["episodes"]) for name in data["conditions"] if name in old]
+    old = {(e["condition"], e["name"]): e for e in data["policies"] if e["kind"] == "mpc"}
+    episodes = {condition: e["episodes"] for (condition, _), e in old.items()}
+    work = [(name, episodes[name]) for name in data["conditions"] if name in episodes]
     with ProcessPoolExecutor(args.jobs) as pool:
-        fresh = {e["condition"]: e for e in pool.map(mpc_entry, work)}
-    data["policies"] = [fresh.get(e["condition"], e) if e["kind"] == "mpc" else e for e in data["policies"]]
+        fresh = {name: entries for (name, _), entries in zip(work, pool.map(mpc_entries, work))}
+    policies = []  # each condition's MPC entries replaced, in place, by its fresh ones
+    for e in data["policies"]:
+        if e["kind"] != "mpc":
+            policies.append(e)
+        elif e["condition"] in fresh:
+            policies += fresh.pop(e["condition"])
+    data["policies"] = policies
     data["targets"] = target_checks(data["policies"])
     data["mpc_refreshed_by"] = "python docs/scripts/refresh_mpc_rows.py"
     write_json(path, data, indent=1)
     write_atomic(args.results / "comparison.md", comparison_markdown(data["policies"]))
-    for name, e in fresh.items():
-        before, after = old[name]["solve_time"], e["solve_time"]
-        print(f"{name}: median {before['median'] * 1e3:.1f} -> {after['median'] * 1e3:.1f} ms, p95 "
-              f"{before['p95'] * 1e3:.1f} -> {after['p95'] * 1e3:.1f}, worst {before['worst'] * 1e3:.0f} -> "
-              f"{after['worst'] * 1e3:.0f}; success {old[name]['success_rate']:.3f} -> {e['success_rate']:.3f}, "
-              f"collisions {old[name]['collision_rate']:.3f} -> {e['collision_rate']:.3f}, time IQM "
-              f"{old[name]['time_iqm']:.4f} -> {e['time_iqm']:.4f} s")
+    for e in (e for e in policies if e["kind"] == "mpc"):
+        before, after = old.get((e["condition"], e["name"])), e["solve_time"]
+        was = (f"median {before['solve_time']['median'] * 1e3:.1f}, success {before['success_rate']:.3f}, collisions "
+               f"{before['collision_rate']:.3f}, time IQM {before['time_iqm']:.4f} s -> " if before else "new: ")
+        print(f"{e['condition']}, {e['name']}: {was}median {after['median'] * 1e3:.1f} ms, p95 {after['p95'] * 1e3:.1f},"
+              f" worst {after['worst'] * 1e3:.0f}; success {e['success_rate']:.3f}, collisions "
+              f"{e['collision_rate']:.3f}, time IQM {e['time_iqm']:.4f} s")
 
 
 if __name__ == "__main__":

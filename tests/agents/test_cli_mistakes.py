@@ -21,7 +21,6 @@ MISTAKES = [
     (["evaluate", "--policies", "dec-continue:abc"], "dec-continue"),
     (["evaluate", "--policies", "dec-restart:-1"], "critical_distance"),
     (["evaluate", "--policies", "mpc:horizon=3"], "the MPC is given as mpc"),
-    (["evaluate", "--policies", "mpc"], "control_mode='voltage'"),
     (["evaluate", "--policies", "optimal"], "control_mode='voltage'"),
     (["evaluate", "--condition", "c12"], "--condition: invalid choice: 'c12'"),
     (["evaluate", "--episodes", "0"], "--episodes must be >= 1"),

@@ -99,8 +99,10 @@ def test_comparison_command_writes_every_policy(tmp_path):
     table = report.comparison_markdown(entries)
     assert "| optimal | optimal | voltage |" in table and "seed 1:" in table
     assert "| mpc | mpc | voltage |" in table and "mpc: solve time per control step median" in table
-    mpc = entries[names.index("mpc")]
-    assert mpc["success_rate"] == 1.0 and mpc["collision_rate"] == 0.0 and mpc["solve_time"]["solves"] > 100
+    assert "| mpc (pd) | mpc | pd |" in table and "mpc (pd): solve time per control step median" in table
+    for name in ("mpc", "mpc (pd)"):
+        mpc = entries[names.index(name)]
+        assert mpc["success_rate"] == 1.0 and mpc["collision_rate"] == 0.0 and mpc["solve_time"]["solves"] > 100
     assert table.startswith("#### Targets") and "| optimal reference on the C11 target" in table
     assert "| policy | c11 |\n" in table and "| pd | - (0.00 / 1.00) |\n" in table  # the overview
     assert f"| optimal | {optimal['time_iqm']:.3f} s |\n" in table
@@ -152,8 +154,8 @@ def test_the_campaign_trains_the_single_file_ppo_once(tmp_path, algo):
 
 
 def _entry(condition, kind, algorithm=None, success=1.0, collisions=0.0, time=1.5, energy=70.0, seeds=None,
-           train_seconds=600.0):
-    e = {"name": algorithm or kind, "kind": kind, "algorithm": algorithm, "condition": condition,
+           train_seconds=600.0, mode="pd"):
+    e = {"name": algorithm or kind, "kind": kind, "algorithm": algorithm, "condition": condition, "control_mode": mode,
          "success_rate": success, "collision_rate": collisions, "time_iqm": time, "energy_mean": energy,
          "run": algorithm, "shielded": False,
          "tags": sorted(registry.RUNS[algorithm].tags) if algorithm in registry.RUNS else []}
@@ -191,28 +193,40 @@ def test_target_checks_say_met_or_the_number_reached():
     assert [c["met"] for c in slow[1:]] == [None] * (len(slow) - 1)
 
 
-def test_the_mpc_targets_name_the_conditions_it_misses_and_its_solve_time():
+def test_the_mpc_targets_name_the_conditions_it_misses_and_its_solve_time_in_each_control_mode():
     from agents.experiments.targets import MPC_CLEAN
 
     timed = {"median": 0.004, "p95": 0.02, "worst": 0.05, "solves": 100, "failures": 0}
-    entries = [_entry("c11", "optimal", time=1.2241), {**_entry("c11", "mpc", time=1.25), "solve_time": timed}]
-    entries += [{**_entry(name, "mpc"), "solve_time": timed} for name in MPC_CLEAN]
+
+    def mpc(condition, mode, **kwargs):
+        return {**_entry(condition, "mpc", mode=mode, **kwargs), "name": "mpc" if mode == "voltage" else "mpc (pd)",
+                "solve_time": dict(timed)}
+
+    entries = [_entry("c11", "optimal", time=1.2241, mode="voltage")]
+    for mode in ("voltage", "pd"):
+        entries += [mpc("c11", mode, time=1.25)] + [mpc(name, mode) for name in MPC_CLEAN]
     checks = {c["target"].split(":")[0]: c for c in target_checks(entries)}
-    near = checks["MPC on the C11 episode"]
-    assert near["met"] is True and "+2.12 %" in near["reached"]
-    clean = checks["MPC with its nominal model"]
-    assert clean["met"] is True and f"{len(MPC_CLEAN)} of {len(MPC_CLEAN)}" in clean["reached"]
+    for mode in ("voltage", "pd"):
+        near = checks[f"MPC ({mode} mode) on the C11 episode"]
+        assert near["met"] is True and "+2.12 %" in near["reached"]
+        clean = checks[f"MPC ({mode} mode) with its nominal model"]
+        assert clean["met"] is True and f"{len(MPC_CLEAN)} of {len(MPC_CLEAN)}" in clean["reached"]
     assert checks["MPC"]["met"] is True and "4.0 ms" in checks["MPC"]["reached"]
-    entries[1]["time_iqm"] = 1.27  # 3.7 % over the optimum
-    entries[3]["collision_rate"] = 0.01
-    entries[4]["solve_time"] = {**timed, "median": 0.012}
+    pd_rows = entries[1 + len(MPC_CLEAN) + 1:]
+    pd_rows[0]["time_iqm"] = 1.27  # 3.7 % over the optimum, in "pd" mode only
+    pd_rows[2]["collision_rate"] = 0.01
+    entries[3]["solve_time"] = {**timed, "median": 0.012}
     checks = {c["target"].split(":")[0]: c for c in target_checks(entries)}
-    assert checks["MPC on the C11 episode"]["met"] is False
-    clean = checks["MPC with its nominal model"]
+    assert checks["MPC (voltage mode) on the C11 episode"]["met"] is True
+    assert checks["MPC (pd mode) on the C11 episode"]["met"] is False
+    assert checks["MPC (voltage mode) with its nominal model"]["met"] is True
+    clean = checks["MPC (pd mode) with its nominal model"]
     assert clean["met"] is False and clean["reached"] == f"{MPC_CLEAN[1]}: success 1.00, collisions 0.01"
-    assert checks["MPC"]["met"] is False and checks["MPC"]["reached"].startswith(f"slowest median: 12.0 ms ({MPC_CLEAN[2]}")
-    missing = {c["target"].split(":")[0]: c for c in target_checks(entries[:2])}["MPC with its nominal model"]
-    assert missing["met"] is None
+    assert checks["MPC"]["met"] is False
+    assert checks["MPC"]["reached"].startswith(f"slowest median: 12.0 ms (mpc, {MPC_CLEAN[1]}")
+    missing = {c["target"].split(":")[0]: c for c in target_checks(entries[:2])}
+    assert missing["MPC (voltage mode) with its nominal model"]["met"] is None
+    assert "MPC (pd mode) with its nominal model" not in missing  # a mode nobody evaluated has no target
 
 
 def test_a_cached_evaluation_is_reused_only_for_the_same_model_condition_and_episodes(tmp_path, monkeypatch):

@@ -26,8 +26,6 @@ def voltage_env(**kwargs):
 
 
 def test_infeasible_or_unsupported_configurations_are_refused_by_name():
-    with pytest.raises(ValueError, match="control_mode='voltage'"):
-        MPCPolicy(gym.make(ENV_ID), SHORT)
     with pytest.raises(ValueError, match="leaves no critical band"):
         MPCPolicy(voltage_env(), MPCConfig(horizon=5, wall_margin=0.015, band_inset=0.005))
     for field, value in (("horizon", 1), ("wall_margin", -0.01), ("approach_rate", 0.0), ("penalty", float("nan")),
@@ -40,6 +38,26 @@ def test_infeasible_or_unsupported_configurations_are_refused_by_name():
         MPCConfig(params={"arm.load_mass": 1.0})
     with pytest.raises(ValueError, match="the MPC is given as mpc"):
         make_policy("mpc:horizon=10", voltage_env())
+
+
+def test_in_pd_mode_it_commands_the_set_point_that_gives_its_voltages_and_reaches_the_target(tmp_path):
+    voltage, pd = voltage_env(), gym.make(ENV_ID, control_mode="pd")
+    task = pd.unwrapped.task
+    for seed in (0, 5):
+        obs, _ = voltage.reset(seed=seed, options={"start": [0.1 * seed, -0.05 * seed, 0.02]})
+        obs_pd, _ = pd.reset(seed=seed, options={"start": [0.1 * seed, -0.05 * seed, 0.02]})
+        assert np.array_equal(obs, obs_pd)
+        planned = MPCPolicy(voltage, SHORT)(obs)  # the same problem, the same plan
+        action = MPCPolicy(pd, SHORT)(obs_pd)
+        applied = task.pd_action(obs_pd, task.action_to_setpoint(action))  # the PD law's voltages, as actions
+        free = np.abs(planned) < 0.999
+        assert free.any() or seed == 0
+        assert np.allclose(applied[free], planned[free], atol=1e-9)
+        assert np.array_equal(np.sign(applied[~free]), np.sign(planned[~free])) and np.all(np.abs(applied[~free]) == 1.0)
+    result = mpc_episodes(get_condition("c11"), cache=tmp_path, config=SHORT, mode="pd")
+    assert result["success"].tolist() == [True] and result["collisions"].tolist() == [0]
+    assert OPTIMAL_TIME <= result["reach_time"][0] < 1.5
+    assert mpc_episodes(get_condition("c11"), cache=tmp_path, config=SHORT)["reach_time"][0] != result["reach_time"][0]
 
 
 def test_the_warm_start_is_the_previous_plan_one_step_on_and_saves_iterations():
