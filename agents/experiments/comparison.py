@@ -59,7 +59,7 @@ ROBUST_RANGES = "all"
 """the robust shield's ranges (scara_gym.envs.randomization's preset): every shift of the protocol lies inside"""
 ROBUST_LABEL = f"pd + robust shield ({ROBUST_RANGES!r} ranges)"
 ROBUST_NOTE = (f"scara_gym.wrappers.Shield with the nominal parameters, robust over the {ROBUST_RANGES!r} ranges "
-               "(their ends and 8 draws, robust_seed 0)")
+               "(their ends, the adverse corners and 8 draws, robust_seed 0)")
 HEURISTIC_VARIANTS = ("continue", "restart")
 CLASSICAL_SOURCES = (policies_base, policies_pd, policies_heuristic, optimal_policy, optimal_solutions, shield_module)
 """the modules whose source a classical policy's cached evaluation digests"""
@@ -163,12 +163,8 @@ class _ConditionTable:
         self.add("pd", "pd", None, "pd", [self.run("pd", PDPolicy)], None)
         self.add("pd" + SHIELD_SUFFIX, "pd", None, "pd", [self.run("shield:pd", lambda env: Shield(env, PDPolicy(env)))],
                  None, note=SHIELD_NOTE, shielded=True)
-        shifted = self.condition.params or self.condition.env_kwargs.get("randomize_params")
-        if robust_shield and shifted:
-            runs = [self.run(f"robust-shield:{ROBUST_RANGES}:pd",
-                             lambda env: Shield(env, PDPolicy(env), robust=ROBUST_RANGES))]
-            self.add(ROBUST_LABEL, "pd", None, "pd", runs, None, note=ROBUST_NOTE, shielded=True,
-                     shield_range=ROBUST_RANGES)
+        if robust_shield:
+            self.robust_shield()
         for variant, tuned in heuristics.items():
             if tuned.get("distance") is None:
                 continue
@@ -191,6 +187,14 @@ class _ConditionTable:
                 self.add("optimal", "optimal", None, "voltage", runs, None,
                          note="minimum-time voltages held over the control steps (agents.policies.optimal)")
 
+    def robust_shield(self) -> None:
+        """PD behind the robust shield, where the condition shifts the parameters."""
+        if self.condition.params or self.condition.env_kwargs.get("randomize_params"):
+            runs = [self.run(f"robust-shield:{ROBUST_RANGES}:pd",
+                             lambda env: Shield(env, PDPolicy(env), robust=ROBUST_RANGES))]
+            self.add(ROBUST_LABEL, "pd", None, "pd", runs, None, note=ROBUST_NOTE, shielded=True,
+                     shield_range=ROBUST_RANGES)
+
     def mpc(self) -> None:
         """The nonlinear MPC with its nominal model in both control modes, and its solve times."""
         for label, mode, note in MPC_ROWS:
@@ -198,12 +202,13 @@ class _ConditionTable:
             e = self.add(label, "mpc", None, mode, [result], None, note=note)
             e["solve_time"] = result["solve_time"]
 
-    def learned(self, groups: dict, cache, shielded) -> None:
-        """Every learned run's seeds (and behind the shield where ``shielded`` names it)."""
+    def learned(self, groups: dict, cache, shielded, shields=(False, True)) -> None:
+        """Every learned run's seeds (and behind the shield where ``shielded`` names it); shields:
+        which of the two evaluations (without, behind the shield) to make."""
         for (algorithm, mode), run_dirs in sorted(groups.items()):
             configs = [json.loads((d / "config.json").read_text()) for d in run_dirs]
             tags = RUNS[algorithm].tags if algorithm in RUNS else frozenset()
-            for shield in (False, True) if algorithm in shielded else (False,):
+            for shield in [s for s in ((False, True) if algorithm in shielded else (False,)) if s in shields]:
                 runs = [learned_episodes(d, self.condition, mode, self.episodes, cache, shield) for d in run_dirs]
                 label = algorithm + ("" if mode == "pd" else f" ({mode})") + (SHIELD_SUFFIX if shield else "")
                 kind = "offline" if "offline" in tags else "learned"

@@ -28,8 +28,9 @@ Zeilinger 2021) with a *committed* backup:
 Models: the nominal parameters (``params``; None: the episode's own, an exact model) and, with ``robust``
 (a :class:`~scara_gym.envs.randomization.ParameterRanges` argument around them: a preset name,
 a dict path -> (low, high) or a ParameterRanges), the ranges' ends (:func:`range_ends`: every
-corner for up to three parameters, else each parameter at either end) and ``robust_samples``
-parameter sets drawn once from the ranges. An action passes only if the backup is safe in
+corner for up to three parameters, else each parameter at either end and the adverse corners,
+where every parameter whose worse end is known sits at it at once: :data:`ADVERSE_ENDS`) and
+``robust_samples`` parameter sets drawn once from the ranges. An action passes only if the backup is safe in
 every model: a certificate for the sampled models, not a proof for the whole range, which the
 property tests probe. The models share the environment's actuator line (``action_delay``,
 ``action_rate_limit``), control mode, tolerances and control step.
@@ -65,18 +66,50 @@ def hold_and_climb(held: np.ndarray, target: np.ndarray, lowest_height: float = 
 
 
 MAX_CORNER_PATHS = 3
+HIGH, LOW, EITHER = 1, 0, None
+ADVERSE_ENDS = {"load_mass": HIGH, "link1_mass": HIGH, "link2_mass": HIGH, "resistance": HIGH,
+                "current_limit": LOW, "height": HIGH, "torque_constant": EITHER, "x_position": EITHER}
+"""per parameter (its path's last part): the end of its range where the backup brakes or climbs
+worst: more mass, more resistance, less current, a higher wall. EITHER: no end is worse for
+every motion (a torque constant gives torque per ampere and back-EMF alike; the nearer wall is
+the one on the arm's side), so the adverse corners take both"""
+
+
+def _corners(ranges: ParameterRanges, paths) -> list[list]:
+    corners = [[]]
+    for path in paths:
+        corners = [c + [(path, end)] for c in corners for end in ranges.ranges[path]]
+    return corners
+
+
+def adverse_corners(ranges: ParameterRanges) -> list[dict]:
+    """The corners of the ranges where every parameter of ADVERSE_ENDS sits at its worse end at
+    once, one corner per choice of ends of the EITHER groups (all torque constants at one end
+    together; the wall's position at either end). Parameters ADVERSE_ENDS does not name stay
+    nominal."""
+    fixed, groups = {}, {}
+    for path, (low, high) in ranges.ranges.items():
+        leaf = path.rsplit(".", 1)[-1]
+        if leaf not in ADVERSE_ENDS:
+            continue
+        if ADVERSE_ENDS[leaf] is EITHER:
+            groups.setdefault(leaf, []).append(path)
+        else:
+            fixed[path] = high if ADVERSE_ENDS[leaf] == HIGH else low
+    corners = [fixed]
+    for paths in groups.values():
+        corners = [{**c, **{path: ranges.ranges[path][end] for path in paths}} for c in corners for end in (0, 1)]
+    return corners if fixed or groups else []
 
 
 def range_ends(ranges: ParameterRanges) -> list[dict]:
     """The robust shield's fixed models: every corner of the ranges (each path at either end)
-    for up to MAX_CORNER_PATHS paths, else each path at either end with the others nominal."""
+    for up to MAX_CORNER_PATHS paths; else each path at either end with the others nominal, and
+    the adverse corners (adverse_corners: the parameters that brake and climb worst, together)."""
     paths = list(ranges.ranges)
     if len(paths) <= MAX_CORNER_PATHS:
-        corners = [[]]
-        for path in paths:
-            corners = [c + [(path, end)] for c in corners for end in ranges.ranges[path]]
-        return [dict(c) for c in corners]
-    return [{path: end} for path in paths for end in ranges.ranges[path]]
+        return [dict(c) for c in _corners(ranges, paths)]
+    return [{path: end} for path in paths for end in ranges.ranges[path]] + adverse_corners(ranges)
 
 
 class Shield:

@@ -219,3 +219,43 @@ def test_the_exact_model_takes_each_episodes_own_parameters():
         env.reset(seed=seed)
         shield(env.unwrapped.task.obs[0].copy())
         assert shield.model_task.episode_params[0] == env.unwrapped.episode_params != scara_gym.DEFAULT_PARAMS
+
+
+def test_the_robust_shields_adverse_corners_put_every_worse_end_together():
+    from scara_gym.envs.randomization import ParameterRanges
+    from scara_gym.wrappers.shield import adverse_corners, range_ends
+
+    ranges = ParameterRanges.preset("all", scara_gym.DEFAULT_PARAMS)
+    corners = adverse_corners(ranges)
+    assert len(corners) == 4  # the torque constants at either end together, times the wall's two positions
+    for corner in corners:
+        for path, (low, high) in ranges.ranges.items():
+            leaf = path.rsplit(".", 1)[-1]
+            if leaf in ("load_mass", "link1_mass", "link2_mass", "resistance", "height"):
+                assert corner[path] == high, path
+            elif leaf == "current_limit":
+                assert corner[path] == low, path
+        assert len({corner[f"axes.{i}.torque_constant"] == ranges.ranges[f"axes.{i}.torque_constant"][0]
+                    for i in range(3)}) == 1
+    assert {c["obstacle.x_position"] for c in corners} == set(ranges.ranges["obstacle.x_position"])
+    assert len(range_ends(ranges)) == 2 * len(ranges.ranges) + 4
+    assert adverse_corners(ParameterRanges({"axes.0.inductance": (0.007, 0.008)})) == []
+
+
+# a robot inside the "all" ranges (a random-shifts draw: lower current limits, a nearer, higher
+# wall) that the per-parameter ends and the draws alone let PD hit the wall with
+SHIFTED_ROBOT = {"arm.link1_mass": 7.9201, "arm.link2_mass": 6.5232, "arm.load_mass": 0.5454,
+                 "axes.0.current_limit": 5.9357, "axes.0.resistance": 3.9928, "axes.0.torque_constant": 0.3821,
+                 "axes.1.current_limit": 2.2935, "axes.1.resistance": 54.1771, "axes.1.torque_constant": 0.2336,
+                 "axes.2.current_limit": 1.398, "axes.2.resistance": 42.2418, "axes.2.torque_constant": 0.3742,
+                 "obstacle.height": 0.1648, "obstacle.x_position": 0.3723}
+
+
+def test_the_adverse_corners_keep_pd_off_the_wall_where_the_ends_alone_do_not(monkeypatch):
+    from scara_gym.wrappers import shield as shield_module
+
+    env = gym.make("Scara-C11-v1", params=scara_gym.DEFAULT_PARAMS.replace(SHIFTED_ROBOT))
+    result = run_episode(env, Shield(env, PDPolicy(env), robust="all"), seed=0)
+    assert result["collisions"] == 0 and result["success"]
+    monkeypatch.setattr(shield_module, "adverse_corners", lambda ranges: [])
+    assert run_episode(env, Shield(env, PDPolicy(env), robust="all"), seed=0)["collisions"] > 0
