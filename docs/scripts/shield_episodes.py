@@ -9,7 +9,7 @@ collides or does not arrive, with its parameters, and the totals (the experiment
 import sys
 import time
 
-from agents.policies.pd import PDPolicy
+from agents.policies import PDPolicy, run_episode
 from scara_gym.benchmark.protocol import get_condition, tuning
 from scara_gym.envs.randomization import ParameterRanges, leaf_value
 from scara_gym.model.params import DEFAULT_PARAMS
@@ -27,17 +27,12 @@ def main(name: str, episodes: int, which: str | None = None) -> None:
     collisions = misses = 0
     started = time.perf_counter()
     for seed in condition.seeds(episodes):
-        shield.reset()
-        obs, info = env.reset(seed=seed, options=condition.options(seed))
-        done = False
-        while not done:
-            obs, _, terminated, truncated, info = env.step(shield(obs))
-            done = terminated or truncated
-        collisions += bool(info["collision"])
-        misses += not info["is_success"]
-        if info["collision"] or not info["is_success"]:
+        result = run_episode(env, shield, seed=seed, options=condition.options(seed))
+        collisions += result["collisions"] > 0
+        misses += not result["success"]
+        if result["collisions"] or not result["success"]:
             params = env.unwrapped.task.episode_params[0]
-            print(f"seed {seed}: collision {info['collision']}, success {info['is_success']}, t {info['time']:.4f} s,",
+            print(f"seed {seed}: collisions {result['collisions']}, success {result['success']},",
                   {path: round(leaf_value(params, path), 4) for path in paths}, flush=True)
     print(f"{name} ({which or 'evaluation'}), {episodes} episodes: {collisions} collisions, {misses} not arrived; "
           f"{(time.perf_counter() - started) / episodes:.1f} s per episode")
