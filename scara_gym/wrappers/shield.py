@@ -75,27 +75,20 @@ every motion (a torque constant gives torque per ampere and back-EMF alike; the 
 the one on the arm's side), so the adverse corners take both"""
 
 
-def _corners(ranges: ParameterRanges, paths) -> list[list]:
-    corners = [[]]
-    for path in paths:
-        corners = [c + [(path, end)] for c in corners for end in ranges.ranges[path]]
-    return corners
-
-
 def adverse_corners(ranges: ParameterRanges) -> list[dict]:
     """The corners of the ranges where every parameter of ADVERSE_ENDS sits at its worse end at
     once, one corner per choice of ends of the EITHER groups (all torque constants at one end
     together; the wall's position at either end). Parameters ADVERSE_ENDS does not name stay
     nominal."""
     fixed, groups = {}, {}
-    for path, (low, high) in ranges.ranges.items():
+    for path, ends in ranges.ranges.items():
         leaf = path.rsplit(".", 1)[-1]
         if leaf not in ADVERSE_ENDS:
             continue
         if ADVERSE_ENDS[leaf] is EITHER:
             groups.setdefault(leaf, []).append(path)
         else:
-            fixed[path] = high if ADVERSE_ENDS[leaf] == HIGH else low
+            fixed[path] = ends[ADVERSE_ENDS[leaf]]  # HIGH, LOW: the index of that end
     corners = [fixed]
     for paths in groups.values():
         corners = [{**c, **{path: ranges.ranges[path][end] for path in paths}} for c in corners for end in (0, 1)]
@@ -108,7 +101,10 @@ def range_ends(ranges: ParameterRanges) -> list[dict]:
     the adverse corners (adverse_corners: the parameters that brake and climb worst, together)."""
     paths = list(ranges.ranges)
     if len(paths) <= MAX_CORNER_PATHS:
-        return [dict(c) for c in _corners(ranges, paths)]
+        corners = [[]]
+        for path in paths:
+            corners = [c + [(path, end)] for c in corners for end in ranges.ranges[path]]
+        return [dict(c) for c in corners]
     return [{path: end} for path in paths for end in ranges.ranges[path]] + adverse_corners(ranges)
 
 
