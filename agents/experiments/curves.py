@@ -8,7 +8,6 @@ point runs the same episodes for every policy; a learned policy runs them with e
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
 import numpy as np
@@ -18,6 +17,7 @@ from agents.experiments.evaluation import learned_episodes, learned_runs
 from agents.experiments.report import curve_figure
 from agents.experiments.statistics import iqm_with_ci, time_scores
 from agents.experiments.tuning import tune_heuristic
+from agents.files import write_json
 from agents.policies import DecHeuristic, PDPolicy
 from scara_gym.benchmark.protocol import evaluate, noise_condition, shift_condition
 from scara_gym.wrappers import Shield
@@ -52,9 +52,25 @@ def robustness_curves(runs_root: Path | None, episodes: int = 20, learned: tuple
             lambda env: DecHeuristic(env, "continue", critical_distance=tuned["margin_distance"]),
     }
     if robust_shield:
-        classical[f"pd + robust shield ({ROBUST_RANGES!r} ranges)"] = \
-            lambda env: Shield(env, PDPolicy(env), robust=ROBUST_RANGES)
+        classical[ROBUST_CURVE_LABEL] = robust_shield_policy
     groups = {k: v for k, v in (learned_runs(runs_root) if runs_root else {}).items() if k[0] in learned}
+    return {"episodes": episodes, "curves": curve_points(classical, groups, episodes, cache, verbose),
+            "heuristic": tuned}
+
+
+ROBUST_CURVE_LABEL = f"pd + robust shield ({ROBUST_RANGES!r} ranges)"
+
+
+def robust_shield_policy(env):
+    """PD behind the robust shield: the curves' robust-shield policy."""
+    return Shield(env, PDPolicy(env), robust=ROBUST_RANGES)
+
+
+def curve_points(classical: dict, groups: dict, episodes: int, cache: Path | None = None,
+                 verbose: bool = True) -> dict:
+    """{curve: {"factors", "policies": {label: row}}} for the ``classical`` policies (label -> a
+    factory of the env) and the learned run ``groups`` ((algorithm, mode) -> run folders): the same
+    episodes at every point for every policy, every seed of a learned run."""
     out = {}
     for curve, (_, factors) in CURVES.items():
         policies: dict[str, dict] = {}
@@ -72,11 +88,11 @@ def robustness_curves(runs_root: Path | None, episodes: int = 20, learned: tuple
                     print(f"[{curve} x{factor:g}] {label}: success {row['success'][-1]:.2f}, collisions "
                           f"{row['collisions'][-1]:.2f}, time IQM {row['time_iqm'][-1]:.3f} s", flush=True)
         out[curve] = {"factors": list(factors), "policies": policies}
-    return {"episodes": episodes, "curves": out, "heuristic": tuned}
+    return out
 
 
 def write_curves(data: dict, out: Path) -> list[Path]:
     """curves.json and the figure (agents.experiments.report.curve_figure) under ``out``."""
     out.mkdir(parents=True, exist_ok=True)
-    (out / "curves.json").write_text(json.dumps(data, indent=1))
+    write_json(out / "curves.json", data, indent=1)
     return [out / "curves.json", curve_figure(data, out / "comparison_robustness.png")]
