@@ -103,12 +103,12 @@ def _paired_time_errors(events: list, reference: list) -> tuple[float, int]:
 
 
 def compare_episode(plan: EpisodePlan, rtol: float = DEFAULT_RTOL, atol: float = DEFAULT_ATOL,
-                    exact_switches: bool = True, integrator: str = "dopri5") -> dict:
+                    exact_switches: bool = True) -> dict:
     """Run the plan at (rtol, atol) and at the reference tolerances (with exact switches);
     the worst errors."""
     from scara_gym.envs.scara_env import ScaraEnv
 
-    runs = [ScaraEnv(**plan.env_kwargs, rtol=rtol, atol=atol, exact_switches=exact_switches, integrator=integrator),
+    runs = [ScaraEnv(**plan.env_kwargs, rtol=rtol, atol=atol, exact_switches=exact_switches),
             ScaraEnv(**plan.env_kwargs, rtol=REFERENCE_TOLERANCES[0], atol=REFERENCE_TOLERANCES[1],
                      exact_switches=True)]
     for env in runs:
@@ -146,8 +146,8 @@ def plans(episodes: int, seed: int = 0) -> list[EpisodePlan]:
 
 
 def run(episodes: int = 200, seed: int = 0, rtol: float = DEFAULT_RTOL, atol: float = DEFAULT_ATOL,
-        exact_switches: bool = True, integrator: str = "dopri5") -> list[dict]:
-    return [compare_episode(plan, rtol, atol, exact_switches, integrator) for plan in plans(episodes, seed)]
+        exact_switches: bool = True) -> list[dict]:
+    return [compare_episode(plan, rtol, atol, exact_switches) for plan in plans(episodes, seed)]
 
 
 def summary(rows: list[dict]) -> dict:
@@ -163,11 +163,10 @@ def summary(rows: list[dict]) -> dict:
             "rhs_per_step": sum(r["rhs_per_step"] * r["steps"] for r in rows) / sum(r["steps"] for r in rows)}
 
 
-def format_summary(result: dict, rtol: float, atol: float, seconds: float, exact_switches: bool = True,
-                   integrator: str = "dopri5") -> str:
+def format_summary(result: dict, rtol: float, atol: float, seconds: float, exact_switches: bool = True) -> str:
     units = {"q": "rad / m", "rate": "rad/s / m/s", "current": "A", "event_time": "s"}
     switches = "exact switches" if exact_switches else "switches at step ends (exact_switches=False)"
-    lines = [f"Accuracy of {integrator.upper()} with {switches} at rtol {rtol:g}, atol {atol:g} against rtol {REFERENCE_TOLERANCES[0]:g}, "
+    lines = [f"Accuracy with {switches} at rtol {rtol:g}, atol {atol:g} against rtol {REFERENCE_TOLERANCES[0]:g}, "
              f"atol {REFERENCE_TOLERANCES[1]:g}: {result['episodes']} episodes, {result['steps']} control "
              f"steps, {result['events']} events ({seconds:.0f} s)",
              "", f"| quantity | target | worst, all episodes | episodes over the target | worst, the "
@@ -187,13 +186,13 @@ def format_summary(result: dict, rtol: float, atol: float, seconds: float, exact
 
 
 def main(episodes: int = 200, seed: int = 0, rtol: float = DEFAULT_RTOL, atol: float = DEFAULT_ATOL,
-         modes=(True, False), stream=None, integrator: str = "dopri5") -> dict:
+         modes=(True, False), stream=None) -> dict:
     """Both ways of locating switches (modes: the exact_switches values), side by side."""
     stream = sys.stdout if stream is None else stream
     results = {}
     for exact_switches in modes:
         started = time.perf_counter()
-        result = results[exact_switches] = summary(run(episodes, seed, rtol, atol, exact_switches, integrator))
-        print(format_summary(result, rtol, atol, time.perf_counter() - started, exact_switches, integrator) + "\n",
+        result = results[exact_switches] = summary(run(episodes, seed, rtol, atol, exact_switches))
+        print(format_summary(result, rtol, atol, time.perf_counter() - started, exact_switches) + "\n",
               file=stream, flush=True)
     return results

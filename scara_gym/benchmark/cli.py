@@ -26,9 +26,6 @@ def main(argv: list[str] | None = None) -> int:
                           f"(default: {LATEST_ENV_ID}'s {v1['rtol']:g})")
     accuracy.add_argument("--atol", type=float, default=v1["atol"], help="absolute tolerance under test "
                           f"(default: {LATEST_ENV_ID}'s {v1['atol']:g})")
-    accuracy.add_argument("--integrator", choices=("dopri5", "dop853"), default="dopri5",
-                          help="the Runge-Kutta pair under test (default dopri5; the reference is always "
-                               "DOPRI5 at its tight tolerances)")
     args = parser.parse_args(argv)
     if args.command == "reproduce":
         if args.repeats < 1:
@@ -45,7 +42,7 @@ def main(argv: list[str] | None = None) -> int:
             except ValueError as error:
                 parser.error(f"--{error}")
         from scara_gym.benchmark.accuracy import main as accuracy_main
-        accuracy_main(args.episodes, args.seed, args.rtol, args.atol, integrator=args.integrator)
+        accuracy_main(args.episodes, args.seed, args.rtol, args.atol)
     elif args.command == "bench":
         from scara_gym.benchmark.bench import main as bench_main
         bench_main(quick=args.quick, gpu_only=args.gpu_only)

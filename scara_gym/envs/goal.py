@@ -259,14 +259,14 @@ class ScaraGoalEnv(_GoalAPI, ScaraEnv):
                  params=None, rtol: float = 1e-6, atol: float = 1e-8, exact_switches: bool = True,
                  randomize_params=False, observation_noise: dict | None = None, action_delay: int = 0,
                  action_rate_limit: float | None = None, render_mode: str | None = None,
-                 sensor_noise: dict | None = None, randomize_start=False, integrator: str = "dopri5") -> None:
+                 sensor_noise: dict | None = None, randomize_start=False) -> None:
         super().__init__(control_mode=control_mode, obstacle=obstacle, collision=collision, target=target,
                          start=start, randomize_target=randomize_target, control_dt=control_dt,
                          time_limit=time_limit, params=params, rtol=rtol, atol=atol,
                          exact_switches=exact_switches, randomize_params=randomize_params,
                          observation_noise=observation_noise, action_delay=action_delay,
                          action_rate_limit=action_rate_limit, render_mode=render_mode,
-                         sensor_noise=sensor_noise, randomize_start=randomize_start, integrator=integrator)
+                         sensor_noise=sensor_noise, randomize_start=randomize_start)
         self.rules = GoalRules(reward_type, collision_penalty, self.params.task.accuracy, self.collision_mode,
                                goal_tolerance)
         self.observation_space = _goal_spaces(self.task)

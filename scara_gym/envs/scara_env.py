@@ -217,13 +217,13 @@ class ScaraEnv(gym.Env):
                  rtol: float = 1e-5, atol: float = 1e-6, exact_switches: bool = False,
                  randomize_params=False, observation_noise: dict | None = None, action_delay: int = 0,
                  action_rate_limit: float | None = None, render_mode: str | None = None,
-                 sensor_noise: dict | None = None, randomize_start=False, integrator: str = "dopri5") -> None:
+                 sensor_noise: dict | None = None, randomize_start=False) -> None:
         self.task = ScaraTask(control_mode, obstacle, collision, target, start, randomize_target,
                               reward_weights, control_dt, time_limit, params, rtol, atol,
                               exact_switches, num_robots=1, randomize_params=randomize_params,
                               observation_noise=observation_noise, action_delay=action_delay,
                               action_rate_limit=action_rate_limit, sensor_noise=sensor_noise,
-                              randomize_start=randomize_start, integrator=integrator)
+                              randomize_start=randomize_start)
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
             raise ValueError(f"render_mode must be one of {self.metadata['render_modes']} or None, "
                              f"got {render_mode!r}")

@@ -25,7 +25,7 @@ from numba.core import caching, event
 PACKAGE_DIR = Path(__file__).resolve().parents[1]
 # every module of the package that defines compiled functions (a test keeps this list complete)
 COMPILED_SOURCES = (
-    "model/compilation.py", "model/records.py", "model/dynamics.py", "model/dop853.py", "model/integrator.py",
+    "model/compilation.py", "model/records.py", "model/dynamics.py", "model/integrator.py",
     "envs/core.py",
 )
 

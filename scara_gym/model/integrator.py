@@ -30,7 +30,6 @@ from numba import njit, types
 from numba.core import cgutils
 from numba.core.extending import intrinsic
 
-from scara_gym.model import dop853
 from scara_gym.model.compilation import JIT, JIT_BORROW, JIT_INLINE
 from scara_gym.model.dynamics import (
     applied_voltages,
@@ -68,7 +67,6 @@ from scara_gym.model.records import (
     EV_TARGET_IN,
     EV_TARGET_OUT,
     EV_WALL_CROSS,
-    METHOD_DOP853,
     N_EVENTS,
     N_STATE,
     RATE,
@@ -282,15 +280,6 @@ def dense_output(x, h, k, theta, out):
     return out
 
 
-@njit(**JIT_INLINE)
-def step_state(high_order, x, h, k, dense, theta, out):
-    """The state at t + theta h on the step's dense output: DOP853's degree-7 polynomial (rows
-    ``dense``, dop853.dense_stages) with high_order, else DOPRI5's quartic."""
-    if high_order:
-        return dop853.state_at(x, dense, theta, out)
-    return dense_output(x, h, k, theta, out)
-
-
 def _dense_slope() -> float:
     """K with |d/dtheta of the dense output| <= K h max_s |k_s| on [0, 1]: the sum over the
     stages of the largest Bernstein coefficient of each weight's derivative (a cubic)."""
@@ -366,18 +355,15 @@ def first_root_affine(g0, i1, c1, i2, c2, coeffs, h, stack, bracket):
 
 
 @njit(**JIT_INLINE)
-def affine_root(g0, i1, c1, i2, c2, x, y_new, bend, h, k, coeffs, ready, stack, bracket, high_order, dense, bz):
+def affine_root(g0, i1, c1, i2, c2, x, y_new, bend, h, k, coeffs, ready, stack, bracket):
     """first_root_affine behind a cheaper test: along the step the event function departs
     from the chord between its end values by at most |c1| bend[i1] + |c2| bend[i2] (see
     BEND), so a step whose end values both exceed that has no root, and needs no dense
-    coefficients (computed once per step when one is needed; with high_order, DOP853's
-    Bernstein coefficients bz, computed for every step). Returns (found, ready: the
+    coefficients (computed once per step when one is needed). Returns (found, ready: the
     coefficients are computed)."""
     g1 = g0 + c1 * (y_new[i1] - x[i1]) + (c2 * (y_new[i2] - x[i2]) if i2 >= 0 else 0.0)
     if min(g0, g1) >= abs(c1) * bend[i1] + (abs(c2) * bend[i2] if i2 >= 0 else 0.0):
         return False, ready
-    if high_order:
-        return first_root_bernstein(g0, i1, c1, i2, c2, x, bz, h, stack, bracket), True
     return slow_root_affine(g0, i1, c1, i2, c2, h, k, coeffs, ready, stack, bracket), True
 
 
@@ -426,49 +412,7 @@ def refine_root_affine(g0, b1, b2, b3, b4, h, stack, bracket):
 
 
 @njit(**JIT_BORROW)
-def first_root_bernstein(g0, i1, c1, i2, c2, x, bz, h, stack, bracket):
-    """first_root_affine on DOP853's degree-7 dense output: the event function's Bernstein
-    coefficients are g0 + c1 (bz[j, i1] - x[i1]) + c2 (bz[j, i2] - x[i2]) (i2 < 0: one term),
-    halved by de Casteljau, leftmost first, as refine_root_affine. stack rows: interval start and
-    width in theta, then the 8 coefficients."""
-    stack[0, 0], stack[0, 1], stack[0, 2] = 0.0, 1.0, g0
-    for j in range(1, 8):
-        stack[0, 2 + j] = g0 + c1 * (bz[j, i1] - x[i1]) + (c2 * (bz[j, i2] - x[i2]) if i2 >= 0 else 0.0)
-    top = 0
-    while top >= 0:
-        start, width = stack[top, 0], stack[top, 1]
-        top -= 1
-        row = top + 1  # the popped interval, overwritten below by its right half
-        lowest = stack[row, 3]
-        changes = 0
-        for j in range(1, 8):
-            lowest = min(lowest, stack[row, 2 + j])
-            changes += (stack[row, 1 + j] >= 0.0) != (stack[row, 2 + j] >= 0.0)
-        if lowest >= 0.0:
-            continue
-        if stack[row, 9] < 0.0 and (changes == 1 or width * h <= SEARCH_RESOLUTION):
-            bracket[0], bracket[1] = start, start + width
-            return True
-        if width * h <= SEARCH_RESOLUTION or top + 2 >= stack.shape[0]:
-            continue
-        # de Casteljau at the middle, in place: the left half's coefficients are the first of each
-        # level, the right half's what the row holds at the end; the right half goes below
-        left = row + 1
-        stack[left, 2] = stack[row, 2]
-        for level in range(1, 8):
-            for j in range(8 - level):
-                stack[row, 2 + j] = 0.5 * (stack[row, 2 + j] + stack[row, 3 + j])
-            stack[left, 2 + level] = stack[row, 2]
-        half = 0.5 * width
-        stack[row, 0], stack[row, 1] = start + half, half
-        stack[left, 0], stack[left, 1] = start, half
-        top += 2
-    return False
-
-
-@njit(**JIT_BORROW)
-def first_root_lipschitz(e, g0, g1, slope, x, h, k, robot, p, config, volts, g_try, x_try, stack, bracket,
-                         high_order, dense, bz):
+def first_root_lipschitz(e, g0, g1, slope, x, h, k, robot, p, config, volts, g_try, x_try, stack, bracket):
     """Bracket the first root in [0, 1] of event function e, not affine in the state, given
     g(0) = g0 >= 0, g(1) = g1 and |dg/dtheta| <= slope: an interval whose end values a, b
     satisfy a + b >= slope * width holds no root; the others are halved, leftmost first, with
@@ -485,7 +429,7 @@ def first_root_lipschitz(e, g0, g1, slope, x, h, k, robot, p, config, volts, g_t
                 or top + 2 >= stack.shape[0]:
             continue
         mid = 0.5 * (lo + hi)
-        step_state(high_order, x, h, k, dense, mid, x_try)
+        dense_output(x, h, k, mid, x_try)
         event_values(x_try, robot, p, config, volts, g_try)
         g_mid = g_try[e]
         stack[top + 1, 0], stack[top + 1, 1], stack[top + 1, 2], stack[top + 1, 3] = mid, hi, g_mid, g_hi
@@ -520,39 +464,22 @@ def chord_clear(e, g0, g1, x, y_new, bend, p):
 
 @njit(**JIT_BORROW)
 def search_switches(x, y_new, h, k, robot, p, config, volts, g_old, g_new, g_try, x_try, coeffs, reach,
-                    bend, stack, bracket, brackets, triggered, high_order, dense, bz):
+                    bend, stack, bracket, brackets, triggered):
     """exact_switches: find every mode switch inside the accepted step [t, t + h], including
     one that starts and ends inside it, and bracket its first root for the Illinois
     refinement (brackets rows: lo, hi, g(lo), g(hi), in theta). Switches whose event
     function is affine in the state (current limits, PD saturation, wall height) are
     bracketed exactly on the dense output's quartic; the others (critical, wall side,
-    target) with a bound on their slope. True when any switch was found.
-
-    With high_order (DOP853) the dense output's rows ``dense`` are given; the Bernstein
-    coefficients bz of its degree-7 polynomial give the bounds: bend from their distance to the
-    chord's, the positions' slopes from their differences (reach holds the slopes themselves)."""
-    if high_order:
-        dop853.bernstein(x, dense, CURRENT + 3, bz)
-        for i in range(CURRENT + 3):
-            step = dense[0, i] / 7.0
-            bend[i] = 0.0
-            for j in range(1, 7):
-                bend[i] = max(bend[i], abs(bz[j, i] - (x[i] + j * step)))
-        for i in range(Q, Q + 3):  # |dq/dtheta| <= 7 max_j |bz[j + 1] - bz[j]|
-            reach[i] = 0.0
-            for j in range(7):
-                reach[i] = max(reach[i], abs(bz[j + 1, i] - bz[j, i]))
-            reach[i] *= 7.0
-    else:
-        for i in range(Q, Q + 3):  # h max_s |k_s|: with DENSE_SLOPE, a bound on each position's slope
-            reach[i] = abs(k[0, i])
-            for stage in range(2, 7):
-                reach[i] = max(reach[i], abs(k[stage, i]))
-            reach[i] *= h
-        for i in range(CURRENT + 3):
-            bend[i] = h * (BEND[2] * abs(k[2, i] - k[0, i]) + BEND[3] * abs(k[3, i] - k[0, i])
-                           + BEND[4] * abs(k[4, i] - k[0, i]) + BEND[5] * abs(k[5, i] - k[0, i])
-                           + BEND[6] * abs(k[6, i] - k[0, i]))
+    target) with a bound on their slope. True when any switch was found."""
+    for i in range(Q, Q + 3):  # h max_s |k_s|: with DENSE_SLOPE, a bound on each position's slope
+        reach[i] = abs(k[0, i])
+        for stage in range(2, 7):
+            reach[i] = max(reach[i], abs(k[stage, i]))
+        reach[i] *= h
+    for i in range(CURRENT + 3):
+        bend[i] = h * (BEND[2] * abs(k[2, i] - k[0, i]) + BEND[3] * abs(k[3, i] - k[0, i])
+                       + BEND[4] * abs(k[4, i] - k[0, i]) + BEND[5] * abs(k[5, i] - k[0, i])
+                       + BEND[6] * abs(k[6, i] - k[0, i]))
     ready = False  # dense coefficients computed
     pd = config.control == CONTROL_PD
     widened = is_widened(robot, config)
@@ -571,10 +498,10 @@ def search_switches(x, y_new, h, k, robot, p, config, volts, g_old, g_new, g_try
             if e < 3 and robot.hold[axis] == 0:  # Imax - |I|: two affine pieces
                 imax = p.current_limit[axis]
                 found, ready = affine_root(imax - x[ii], ii, -1.0, -1, 0.0, x, y_new, bend, h, k, coeffs, ready,
-                                           stack, bracket, high_order, dense, bz)
+                                           stack, bracket)
                 if not found:
                     found, ready = affine_root(imax + x[ii], ii, 1.0, -1, 0.0, x, y_new, bend, h, k, coeffs,
-                                               ready, stack, bracket, high_order, dense, bz)
+                                               ready, stack, bracket)
             elif e < 3:  # held: hold * I' of the free dynamics, through the voltage and the back-EMF
                 s = robot.hold[axis]
                 emf = p.torque_constant[axis] * p.gear_ratio[axis]
@@ -582,34 +509,31 @@ def search_switches(x, y_new, h, k, robot, p, config, volts, g_old, g_new, g_try
                 if pd and not saturated:
                     found, ready = affine_root(g_old[e], iq, -s * gain_p / inductance, iv,
                                                -s * (gain_d + emf) / inductance, x, y_new, bend, h, k, coeffs,
-                                               ready, stack, bracket, high_order, dense, bz)
+                                               ready, stack, bracket)
                 else:
                     found, ready = affine_root(g_old[e], iv, -s * emf / inductance, -1, 0.0, x, y_new, bend, h,
-                                               k, coeffs, ready, stack, bracket, high_order, dense, bz)
+                                               k, coeffs, ready, stack, bracket)
             elif pd:  # PD saturation, u = P (q^ - q) - D q'
                 if not saturated:  # limit - |u|: two affine pieces
                     limit = voltage_limit(p, axis, widened)
                     u = pd_linear_voltage(robot, x, p, axis)
                     found, ready = affine_root(limit - u, iq, gain_p, iv, gain_d, x, y_new, bend, h, k, coeffs,
-                                               ready, stack, bracket, high_order, dense, bz)
+                                               ready, stack, bracket)
                     if not found:
                         found, ready = affine_root(limit + u, iq, -gain_p, iv, -gain_d, x, y_new, bend, h, k,
-                                                   coeffs, ready, stack, bracket, high_order, dense, bz)
+                                                   coeffs, ready, stack, bracket)
                 else:
                     s = robot.saturation[axis]
                     found, ready = affine_root(g_old[e], iq, -s * gain_p, iv, -s * gain_d, x, y_new, bend, h, k,
-                                               coeffs, ready, stack, bracket, high_order, dense, bz)
+                                               coeffs, ready, stack, bracket)
         elif e == E_HEIGHT:
             found, ready = affine_root(g_old[e], Q + 2, 1.0 if robot.above == 1 else -1.0, -1, 0.0, x, y_new,
-                                       bend, h, k, coeffs, ready, stack, bracket, high_order, dense, bz)
+                                       bend, h, k, coeffs, ready, stack, bracket)
         elif (e == E_CRITICAL and config.critical_rule != CRIT_SWITCH) or (e == E_SIDE and not config.wall):
             continue  # constant: the mode cannot switch
         else:
             affine = False
-            if high_order:
-                d1, d2, d3 = reach[Q], reach[Q + 1], reach[Q + 2]
-            else:
-                d1, d2, d3 = (DENSE_SLOPE * reach[Q], DENSE_SLOPE * reach[Q + 1], DENSE_SLOPE * reach[Q + 2])
+            d1, d2, d3 = (DENSE_SLOPE * reach[Q], DENSE_SLOPE * reach[Q + 1], DENSE_SLOPE * reach[Q + 2])
             tip_x_slope = p.link1_length * d1 + p.link2_length * (d1 + d2)
             if e == E_SIDE:
                 slope = tip_x_slope
@@ -620,7 +544,7 @@ def search_switches(x, y_new, h, k, robot, p, config, volts, g_old, g_new, g_try
             if g_new[e] < 0.0 or (g_old[e] + g_new[e] < slope
                                   and not chord_clear(e, g_old[e], g_new[e], x, y_new, bend, p)):
                 found = first_root_lipschitz(e, g_old[e], g_new[e], slope, x, h, k, robot, p, config, volts,
-                                             g_try, x_try, stack, bracket, high_order, dense, bz)
+                                             g_try, x_try, stack, bracket)
         if not found:
             continue
         lo, hi = bracket[0], bracket[1]
@@ -628,12 +552,12 @@ def search_switches(x, y_new, h, k, robot, p, config, volts, g_old, g_new, g_try
             if hi >= 1.0:
                 g_hi = g_new[e]
             else:
-                step_state(high_order, x, h, k, dense, hi, x_try)
+                dense_output(x, h, k, hi, x_try)
                 g_hi = event_values(x_try, robot, p, config, volts, g_try)[e]
             if lo <= 0.0:
                 g_lo = g_old[e]
             else:
-                step_state(high_order, x, h, k, dense, lo, x_try)
+                dense_output(x, h, k, lo, x_try)
                 g_lo = event_values(x_try, robot, p, config, volts, g_try)[e]
             if g_hi >= 0.0:
                 continue  # a root the polynomial has and the rounding of g does not
@@ -648,9 +572,9 @@ def search_switches(x, y_new, h, k, robot, p, config, volts, g_old, g_new, g_try
 
 
 @njit(**JIT_BORROW)
-def initial_step(x, f0, robot, p, config, volts, scale, y1, f1, order):
-    """Hairer's starting step, as scipy's select_initial_step for a method of error estimator
-    ``order`` (4: DOPRI5, 7: DOP853); scale, y1 and f1 are work vectors of the state's size."""
+def initial_step(x, f0, robot, p, config, volts, scale, y1, f1):
+    """Hairer's starting step, as scipy's select_initial_step (order 5); scale, y1 and f1
+    are work vectors of the state's size."""
     n = x.shape[0]
     rtol, atol = config.rtol, config.atol
     for i in range(n):
@@ -667,7 +591,7 @@ def initial_step(x, f0, robot, p, config, volts, scale, y1, f1, order):
     if d1 <= 1e-15 and d2 <= 1e-15:
         h1 = max(1e-6, h0 * 1e-3)
     else:
-        h1 = (0.01 / max(d1, d2)) ** (1.0 / (order + 1))
+        h1 = (0.01 / max(d1, d2)) ** (1.0 / 5.0)
     return min(100.0 * h0, h1)
 
 
@@ -685,43 +609,9 @@ def record(t, x, robot, p, config, volts, samples):
         robot.n_samples = n + 1
 
 
-@njit(**JIT_INLINE)
-def dopri5_step(x, h_step, k, y_stage, y_new, err_vec, scale, robot, p, config, volts):
-    """One Dormand-Prince 5(4) step from k[0] = f(x): k[1..5], y_new, k[6] = f(y_new) (6 right-hand
-    sides), and the RMS norm of the embedded error. The stages are written out (row j of RK_A,
-    RK_B, RK_E; zero entries left out)."""
-    n = x.shape[0]
-    rtol, atol = config.rtol, config.atol
-    for i in range(n):
-        y_stage[i] = x[i] + h_step * (A21 * k[0, i])
-    derivative(y_stage, robot, p, config, k[1], volts)
-    for i in range(n):
-        y_stage[i] = x[i] + h_step * (A31 * k[0, i] + A32 * k[1, i])
-    derivative(y_stage, robot, p, config, k[2], volts)
-    for i in range(n):
-        y_stage[i] = x[i] + h_step * (A41 * k[0, i] + A42 * k[1, i] + A43 * k[2, i])
-    derivative(y_stage, robot, p, config, k[3], volts)
-    for i in range(n):
-        y_stage[i] = x[i] + h_step * (A51 * k[0, i] + A52 * k[1, i] + A53 * k[2, i] + A54 * k[3, i])
-    derivative(y_stage, robot, p, config, k[4], volts)
-    for i in range(n):
-        y_stage[i] = x[i] + h_step * (A61 * k[0, i] + A62 * k[1, i] + A63 * k[2, i] + A64 * k[3, i]
-                                      + A65 * k[4, i])
-    derivative(y_stage, robot, p, config, k[5], volts)
-    for i in range(n):
-        y_new[i] = x[i] + h_step * (B1 * k[0, i] + B3 * k[2, i] + B4 * k[3, i] + B5 * k[4, i]
-                                    + B6 * k[5, i])
-    derivative(y_new, robot, p, config, k[6], volts)
-    for i in range(n):
-        err_vec[i] = h_step * (E1 * k[0, i] + E3 * k[2, i] + E4 * k[3, i] + E5 * k[4, i]
-                               + E6 * k[5, i] + E7 * k[6, i])
-        scale[i] = atol + rtol * max(abs(x[i]), abs(y_new[i]))
-    return rms_norm(err_vec, scale)
-
-
-WORK_SHAPE = (42, N_STATE)       # float64: stages, stage and trial states, scales, dense output and its bounds
+WORK_SHAPE = (18, N_STATE)       # float64: stages, stage and trial states, scales, dense coefficients
 SMALL_SHAPE = (9, N_EVENTS)      # float64: event values, voltages, brackets
-STACK_SHAPE = (STACK_DEPTH, 10)  # float64: the in-step searches' intervals (start, width, 8 coefficients)
+STACK_SHAPE = (STACK_DEPTH, 7)   # float64: the in-step searches' intervals
 
 
 @njit(**JIT)
@@ -774,20 +664,15 @@ def integrate_timed(robot, p, config, t_end, log, samples, workspace, timers):
     timer branch before compiling: integrate_with's machine code has no trace of them."""
     n = N_STATE
     work, small, stack, triggered = workspace
-    k = work[:16]  # stages: DOPRI5 uses k[0..6], DOP853 k[0..15]
-    y_new = work[16]
-    y_stage = work[17]
-    x_event = work[18]
-    scale = work[19]
-    err_vec = work[20]
-    coeffs = work[21:25]
-    reach = work[25]
-    bend = work[26]
-    dense = work[27:34]  # DOP853's dense output rows (dop853.dense_stages)
-    bz = work[34:42]     # and their Bernstein coefficients (dop853.bernstein)
-    high_order = config.method == METHOD_DOP853
-    last_stage = dop853.N_STAGES if high_order else 6  # f(y_new): the next step's k[0]
-    exponent = dop853.ERROR_EXPONENT if high_order else -0.2
+    k = work[:7]
+    y_new = work[7]
+    y_stage = work[8]
+    x_event = work[9]
+    scale = work[10]
+    err_vec = work[11]
+    coeffs = work[12:16]
+    reach = work[16]
+    bend = work[17]
     g_old = small[0]
     g_new = small[1]
     g_try = small[2]
@@ -808,7 +693,7 @@ def integrate_timed(robot, p, config, t_end, log, samples, workspace, timers):
     h = robot.step_size
     h_max = robot.max_step
     if h <= 0.0:
-        h = initial_step(x, k[0], robot, p, config, volts, scale, y_stage, y_new, 7 if high_order else 4)
+        h = initial_step(x, k[0], robot, p, config, volts, scale, y_stage, y_new)
         robot.n_rhs += 1
     budget = config.max_steps
     attempts = 0
@@ -820,16 +705,36 @@ def integrate_timed(robot, p, config, t_end, log, samples, workspace, timers):
         attempts += 1
         h_step = min(h, h_max, t_end - t)
         last = h_step >= t_end - t
-        if high_order:
-            dop853.stages(x, h_step, k, y_stage, y_new, robot, p, config, volts)
-            robot.n_rhs += 12
-            err = dop853.error_norm(x, y_new, h_step, k, rtol, atol)
-        else:
-            err = dopri5_step(x, h_step, k, y_stage, y_new, err_vec, scale, robot, p, config, volts)
-            robot.n_rhs += 6
+        # Dormand-Prince stages, written out (row j of RK_A, RK_B, RK_E; zero entries left out)
+        for i in range(n):
+            y_stage[i] = x[i] + h_step * (A21 * k[0, i])
+        derivative(y_stage, robot, p, config, k[1], volts)
+        for i in range(n):
+            y_stage[i] = x[i] + h_step * (A31 * k[0, i] + A32 * k[1, i])
+        derivative(y_stage, robot, p, config, k[2], volts)
+        for i in range(n):
+            y_stage[i] = x[i] + h_step * (A41 * k[0, i] + A42 * k[1, i] + A43 * k[2, i])
+        derivative(y_stage, robot, p, config, k[3], volts)
+        for i in range(n):
+            y_stage[i] = x[i] + h_step * (A51 * k[0, i] + A52 * k[1, i] + A53 * k[2, i] + A54 * k[3, i])
+        derivative(y_stage, robot, p, config, k[4], volts)
+        for i in range(n):
+            y_stage[i] = x[i] + h_step * (A61 * k[0, i] + A62 * k[1, i] + A63 * k[2, i] + A64 * k[3, i]
+                                          + A65 * k[4, i])
+        derivative(y_stage, robot, p, config, k[5], volts)
+        for i in range(n):
+            y_new[i] = x[i] + h_step * (B1 * k[0, i] + B3 * k[2, i] + B4 * k[3, i] + B5 * k[4, i]
+                                        + B6 * k[5, i])
+        derivative(y_new, robot, p, config, k[6], volts)
+        robot.n_rhs += 6
+        for i in range(n):
+            err_vec[i] = h_step * (E1 * k[0, i] + E3 * k[2, i] + E4 * k[3, i] + E5 * k[4, i]
+                                   + E6 * k[5, i] + E7 * k[6, i])
+            scale[i] = atol + rtol * max(abs(x[i]), abs(y_new[i]))
+        err = rms_norm(err_vec, scale)
         finite = math.isfinite(err)
         if not finite or err > 1.0:  # rejected: a non-finite state shrinks the step tenfold
-            h = h_step * max(MIN_FACTOR, SAFETY * err ** exponent) if finite else 0.1 * h_step
+            h = h_step * max(MIN_FACTOR, SAFETY * err ** -0.2) if finite else 0.1 * h_step
             robot.n_rejected += 1
             if h < 1e-14 * max(1.0, abs(t)):
                 robot.step_size = h
@@ -837,20 +742,14 @@ def integrate_timed(robot, p, config, t_end, log, samples, workspace, timers):
                 return STATUS_STEP_UNDERFLOW if finite else STATUS_NOT_FINITE
             continue
         robot.n_steps += 1
-        factor = MAX_FACTOR if err == 0.0 else min(MAX_FACTOR, SAFETY * err ** exponent)
-        dense_ready = False
+        factor = MAX_FACTOR if err == 0.0 else min(MAX_FACTOR, SAFETY * err ** -0.2)
 
         if timers is not None:
             started = cycles()
         event_values(y_new, robot, p, config, volts, g_new)
         if config.exact_switches:
-            if high_order:
-                dop853.dense_stages(x, y_new, h_step, k, y_stage, robot, p, config, volts, dense)
-                robot.n_rhs += 3
-                dense_ready = True
             any_event = search_switches(x, y_new, h_step, k, robot, p, config, volts, g_old, g_new, g_try,
-                                        x_event, coeffs, reach, bend, stack, bracket, brackets, triggered,
-                                        high_order, dense, bz)
+                                        x_event, coeffs, reach, bend, stack, bracket, brackets, triggered)
         else:  # sign changes at the step's ends only
             any_event = False
             for e in range(N_EVENTS):
@@ -865,16 +764,13 @@ def integrate_timed(robot, p, config, t_end, log, samples, workspace, timers):
             t = t_end if last else t + h_step
             for i in range(n):
                 x[i] = y_new[i]
-                k[0, i] = k[last_stage, i]
+                k[0, i] = k[6, i]
             for e in range(N_EVENTS):
                 g_old[e] = g_new[e]
             h = max(h, h_step * factor) if last else h_step * factor
             if samples is not None:
                 record(t, x, robot, p, config, volts, samples)
             continue
-        if high_order and not dense_ready:
-            dop853.dense_stages(x, y_new, h_step, k, y_stage, robot, p, config, volts, dense)
-            robot.n_rhs += 3
 
         # locate the earliest event on the dense output (Illinois), bracket [lo, hi] in theta
         theta_first = 1.0
@@ -889,7 +785,7 @@ def integrate_timed(robot, p, config, t_end, log, samples, workspace, timers):
                 theta = (lo * g_hi - hi * g_lo) / (g_hi - g_lo)
                 if not (lo < theta < hi):
                     theta = 0.5 * (lo + hi)
-                step_state(high_order, x, h_step, k, dense, theta, x_event)
+                dense_output(x, h_step, k, theta, x_event)
                 event_values(x_event, robot, p, config, volts, g_try)
                 g_mid = g_try[e]
                 if g_mid < 0.0:
@@ -907,7 +803,7 @@ def integrate_timed(robot, p, config, t_end, log, samples, workspace, timers):
             for i in range(n):
                 x_event[i] = y_new[i]
         else:
-            step_state(high_order, x, h_step, k, dense, theta_first, x_event)
+            dense_output(x, h_step, k, theta_first, x_event)
         event_values(x_event, robot, p, config, volts, g_try)
         t = t_end if (last and theta_first >= 1.0) else t + theta_first * h_step
         for i in range(n):

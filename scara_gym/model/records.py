@@ -66,7 +66,6 @@ CONFIG = np.dtype([
     ("max_steps", I8),      # accepted + rejected step budget of one call
     ("rtol", F8), ("atol", F8),  # error tolerances, scipy's meaning
     ("exact_switches", B1),  # the PD saturation a located mode, every switch searched inside steps
-    ("method", I8),         # METHOD_DOPRI5 or METHOD_DOP853: the Runge-Kutta pair
 ], align=True)  # aligned fields: numba-cuda loads only aligned ones
 
 ROBOT = np.dtype([
@@ -96,8 +95,6 @@ SAMPLE = np.dtype([("t", F8), ("x", F8, N_STATE), ("voltage", F8, 3)])
 
 FORM_EXPLICIT, FORM_IMPLICIT = 0, 1
 CONTROL_PD, CONTROL_VOLTAGE = 0, 1
-METHOD_DOPRI5, METHOD_DOP853 = 0, 1
-METHODS = {"dopri5": METHOD_DOPRI5, "dop853": METHOD_DOP853}
 CRIT_OFF, CRIT_SWITCH, CRIT_FORCED = 0, 1, 2
 
 STOP_TARGET = 1       # entered the target band

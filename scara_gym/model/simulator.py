@@ -185,8 +185,6 @@ class Simulator:
             False (the default, the behaviour of 0.1 and 0.2): switches are seen at the ends
             of steps, and the saturation is a kink left to step-size control.
         max_step: largest integration step [s].
-        integrator: "dopri5" (Dormand-Prince 5(4), the default) or "dop853" (Dormand-Prince
-            8(5,3) with its degree-7 dense output, as scipy's DOP853).
         record: keep samples (capacity); 0 for none.
     """
 
@@ -195,7 +193,7 @@ class Simulator:
                  decelerate: bool = False, wall: bool = False, stop: Sequence[str] = ("target",),
                  rtol: float = REFERENCE_RTOL, atol: float = REFERENCE_ATOL,
                  exact_switches: bool = False, max_step: float = 0.01, max_steps: int = 2_000_000,
-                 record: int = 200_000, max_events: int = 10_000, integrator: str = "dopri5") -> None:
+                 record: int = 200_000, max_events: int = 10_000) -> None:
         self.params = params = resolve_params(params)
         self.p = np.array([params.to_record()], dtype=R.PARAMS)
         self.config = np.zeros(1, dtype=R.CONFIG)
@@ -216,7 +214,6 @@ class Simulator:
         config["rtol"] = self.rtol = check_tolerance("rtol", rtol)
         config["atol"] = self.atol = check_tolerance("atol", atol)
         config["exact_switches"] = checks.flag("exact_switches", exact_switches)
-        config["method"] = R.METHODS[checks.choice("integrator", integrator, R.METHODS)]
         self.robots = np.zeros(1, dtype=R.ROBOT)
         self.robot = self.robots[0]
         self.robot["max_step"] = checks.real("max_step", max_step, 0.0, 1.0, unit="s", low_open=True)

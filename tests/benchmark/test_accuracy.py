@@ -83,7 +83,7 @@ def test_accuracy_command_prints_both_tables(capsys):
     from scara_gym.benchmark.cli import main
     assert main(["accuracy", "--episodes", "2"]) == 0
     out = capsys.readouterr().out
-    assert "Accuracy of DOPRI5 with exact switches at rtol 1e-07, atol 1e-09" in out  # Scara-C11-v2's
+    assert "Accuracy with exact switches at rtol 1e-07, atol 1e-09" in out  # Scara-C11-v2's
     assert "switches at step ends (exact_switches=False)" in out
     assert out.count("| event_time [s] | 1e-06 |") == 2
 
