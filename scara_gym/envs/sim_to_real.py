@@ -35,7 +35,7 @@ No gymnasium import here: the task object (:mod:`scara_gym.envs.task`) uses it.
 from __future__ import annotations
 
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, field as dataclass_field
 
 import numpy as np
 
@@ -79,13 +79,18 @@ class SimToReal:
                                             unit="action units per second")
         return cls(std, delay, action_rate_limit, control_dt, sensor)
 
-    @property
-    def noisy(self) -> bool:
-        return bool(np.any(self.noise_std > 0.0)) or self.sensor_noisy
+    def __post_init__(self) -> None:
+        # read at every step: decided once (np.any costs microseconds a call)
+        object.__setattr__(self, "observation_noisy", bool(np.any(self.noise_std > 0.0)))
+        object.__setattr__(self, "sensor_noisy", self.sensor_std is not None and bool(np.any(self.sensor_std > 0.0)))
+        object.__setattr__(self, "noisy", self.observation_noisy or self.sensor_noisy)
 
-    @property
-    def sensor_noisy(self) -> bool:
-        return self.sensor_std is not None and bool(np.any(self.sensor_std > 0.0))
+    observation_noisy: bool = dataclass_field(init=False, repr=False, compare=False)
+    """per-entry observation noise on some entry"""
+    sensor_noisy: bool = dataclass_field(init=False, repr=False, compare=False)
+    """noise on some sensor channel"""
+    noisy: bool = dataclass_field(init=False, repr=False, compare=False)
+    """either"""
 
     @property
     def shapes_actions(self) -> bool:

@@ -512,7 +512,7 @@ class ScaraTask:
         if options.sensor_noisy:
             obs = sense(obs, options.sensor_std, rng, self.robot_params[i], self.obstacle, self.obs_low,
                         self.obs_high).astype(np.float32)
-        if not np.any(options.noise_std > 0.0):
+        if not options.observation_noisy:
             return obs
         return add_noise(obs, options.noise_std, rng, self.obs_low, self.obs_high)
 
@@ -555,10 +555,11 @@ class ScaraTask:
 
     def _robot_info(self, i: int) -> dict:
         """info(i): the same entries as Python scalars, plus current_limited, voltage, target."""
-        values = pack_info(i, self.robots, self.robot_params, self.outcomes, self._info_buffer).tolist()
+        packed = pack_info(i, self.robots, self.robot_params, self.outcomes, self._info_buffer)
+        scalars = len(REWARD_TERMS) + 8
+        values = packed[:scalars].tolist()
         terms = dict(zip(REWARD_TERMS, values[:len(REWARD_TERMS)]))
-        (reached, collisions, episode_collisions, critical, t, energy, clipped, reach_time,
-         *rest) = values[len(REWARD_TERMS):]
+        reached, collisions, episode_collisions, critical, t, energy, clipped, reach_time = values[len(REWARD_TERMS):]
         collisions = int(collisions)
         reached = reached != 0.0
         info = {
@@ -571,9 +572,9 @@ class ScaraTask:
             "time": t,
             "energy": energy,
             "clipped_actions": int(clipped),
-            "current_limited": np.array(rest[0:3]) != 0.0,
-            "voltage": np.array(rest[3:6]),
-            "target": np.array(rest[6:9]),
+            "current_limited": packed[scalars:scalars + 3] != 0.0,
+            "voltage": packed[scalars + 3:scalars + 6].copy(),
+            "target": packed[scalars + 6:scalars + 9].copy(),
         }
         if reached:
             info["reach_time"] = reach_time
