@@ -61,6 +61,13 @@ ROBUST_LABEL = f"pd + robust shield ({ROBUST_RANGES!r} ranges)"
 ROBUST_NOTE = (f"scara_gym.wrappers.Shield with the nominal parameters, robust over the {ROBUST_RANGES!r} ranges "
                "(their ends, the adverse corners and 8 draws, robust_seed 0)")
 HEURISTIC_VARIANTS = ("continue", "restart")
+
+
+def robust_shield_pd(env) -> Shield:
+    """The ROBUST_LABEL policy: PD behind the shield robust over ROBUST_RANGES."""
+    return Shield(env, PDPolicy(env), robust=ROBUST_RANGES)
+
+
 CLASSICAL_SOURCES = (policies_base, policies_pd, policies_heuristic, optimal_policy, optimal_solutions, shield_module)
 """the modules whose source a classical policy's cached evaluation digests"""
 OPTIMAL_CONDITIONS = ("c11", "sensor-noise", "sensor-noise-x5")
@@ -190,8 +197,7 @@ class _ConditionTable:
     def robust_shield(self) -> None:
         """PD behind the robust shield, where the condition shifts the parameters."""
         if self.condition.params or self.condition.env_kwargs.get("randomize_params"):
-            runs = [self.run(f"robust-shield:{ROBUST_RANGES}:pd",
-                             lambda env: Shield(env, PDPolicy(env), robust=ROBUST_RANGES))]
+            runs = [self.run(f"robust-shield:{ROBUST_RANGES}:pd", robust_shield_pd)]
             self.add(ROBUST_LABEL, "pd", None, "pd", runs, None, note=ROBUST_NOTE, shielded=True,
                      shield_range=ROBUST_RANGES)
 

@@ -12,7 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
-from agents.experiments.comparison import ROBUST_RANGES
+from agents.experiments.comparison import ROBUST_LABEL, robust_shield_pd
 from agents.experiments.evaluation import learned_episodes, learned_runs
 from agents.experiments.report import curve_figure
 from agents.experiments.statistics import iqm_with_ci, time_scores
@@ -52,18 +52,10 @@ def robustness_curves(runs_root: Path | None, episodes: int = 20, learned: tuple
             lambda env: DecHeuristic(env, "continue", critical_distance=tuned["margin_distance"]),
     }
     if robust_shield:
-        classical[ROBUST_CURVE_LABEL] = robust_shield_policy
+        classical[ROBUST_LABEL] = robust_shield_pd
     groups = {k: v for k, v in (learned_runs(runs_root) if runs_root else {}).items() if k[0] in learned}
     return {"episodes": episodes, "curves": curve_points(classical, groups, episodes, cache, verbose),
             "heuristic": tuned}
-
-
-ROBUST_CURVE_LABEL = f"pd + robust shield ({ROBUST_RANGES!r} ranges)"
-
-
-def robust_shield_policy(env):
-    """PD behind the robust shield: the curves' robust-shield policy."""
-    return Shield(env, PDPolicy(env), robust=ROBUST_RANGES)
 
 
 def curve_points(classical: dict, groups: dict, episodes: int, cache: Path | None = None,

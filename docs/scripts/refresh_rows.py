@@ -83,7 +83,6 @@ def main() -> None:
             policies.insert(at, entry)
     data["policies"] = policies
     data["targets"] = target_checks(data["policies"])
-    data.pop("mpc_refreshed_by", None)
     data.setdefault("refreshed_by", {})[args.rows] = f"python docs/scripts/refresh_rows.py {args.rows}"
     write_json(path, data, indent=1)
     write_atomic(args.results / "comparison.md", comparison_markdown(data["policies"]))

@@ -64,6 +64,18 @@ class SimToReal:
     """the control step [s] (the rate limit's time scale)"""
     sensor_std: np.ndarray = None
     """per measured channel (q1..q3, rates, currents), the sensor noise's standard deviation"""
+    observation_noisy: bool = dataclass_field(init=False, repr=False, compare=False)
+    """per-entry observation noise on some entry"""
+    sensor_noisy: bool = dataclass_field(init=False, repr=False, compare=False)
+    """noise on some sensor channel"""
+    noisy: bool = dataclass_field(init=False, repr=False, compare=False)
+    """either (the three are decided once, in __post_init__)"""
+
+    def __post_init__(self) -> None:
+        # read at every step: decided once (np.any costs microseconds a call)
+        object.__setattr__(self, "observation_noisy", bool(np.any(self.noise_std > 0.0)))
+        object.__setattr__(self, "sensor_noisy", self.sensor_std is not None and bool(np.any(self.sensor_std > 0.0)))
+        object.__setattr__(self, "noisy", self.observation_noisy or self.sensor_noisy)
 
     @classmethod
     def from_arguments(cls, observation_noise, action_delay, action_rate_limit, control_dt: float,
@@ -78,19 +90,6 @@ class SimToReal:
             action_rate_limit = checks.real("action_rate_limit", action_rate_limit, 1e-6, 1e9,
                                             unit="action units per second")
         return cls(std, delay, action_rate_limit, control_dt, sensor)
-
-    def __post_init__(self) -> None:
-        # read at every step: decided once (np.any costs microseconds a call)
-        object.__setattr__(self, "observation_noisy", bool(np.any(self.noise_std > 0.0)))
-        object.__setattr__(self, "sensor_noisy", self.sensor_std is not None and bool(np.any(self.sensor_std > 0.0)))
-        object.__setattr__(self, "noisy", self.observation_noisy or self.sensor_noisy)
-
-    observation_noisy: bool = dataclass_field(init=False, repr=False, compare=False)
-    """per-entry observation noise on some entry"""
-    sensor_noisy: bool = dataclass_field(init=False, repr=False, compare=False)
-    """noise on some sensor channel"""
-    noisy: bool = dataclass_field(init=False, repr=False, compare=False)
-    """either"""
 
     @property
     def shapes_actions(self) -> bool:

@@ -23,6 +23,7 @@ from typing import NamedTuple
 import numpy as np
 
 from scara_gym.envs.core import (
+    INFO_FIELDS,
     N_INFO,
     N_OBS,
     OBSERVATION,
@@ -204,6 +205,10 @@ def _reward_weights(reward_weights) -> RewardWeights:
         return RewardWeights(**reward_weights)
     raise TypeError(f"reward_weights must be a RewardWeights or a dict with keys among {names}, "
                     f"got {reward_weights!r}")
+
+
+INFO_SCALARS = INFO_FIELDS.index("hold1")
+"""INFO_FIELDS' scalar entries, before the hold, voltage and target vectors"""
 
 
 class ScaraTask:
@@ -556,7 +561,7 @@ class ScaraTask:
     def _robot_info(self, i: int) -> dict:
         """info(i): the same entries as Python scalars, plus current_limited, voltage, target."""
         packed = pack_info(i, self.robots, self.robot_params, self.outcomes, self._info_buffer)
-        scalars = len(REWARD_TERMS) + 8
+        scalars = INFO_SCALARS
         values = packed[:scalars].tolist()
         terms = dict(zip(REWARD_TERMS, values[:len(REWARD_TERMS)]))
         reached, collisions, episode_collisions, critical, t, energy, clipped, reach_time = values[len(REWARD_TERMS):]
