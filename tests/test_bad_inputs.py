@@ -143,6 +143,12 @@ CASES = [
     ("env atol negative", env(atol=-1.0), [ATOL]),
     ("env atol nan", env(atol=math.nan), [ATOL]),
     ("env exact_switches", env(exact_switches="yes"), ["exact_switches must be True or False"]),
+    ("env tolerance_weights zero", env(tolerance_weights={"current": 0.0}),
+     ["tolerance_weights['current']", "[0.001, 1000]"]),
+    ("env tolerance_weights nan", env(tolerance_weights={"q": math.nan}), ["tolerance_weights['q']", "[0.001, 1000]"]),
+    ("env tolerance_weights group", env(tolerance_weights={"voltage": 2.0}),
+     ["unknown tolerance_weights ['voltage']", "'current', 'energy', 'q', 'rate'"]),
+    ("env tolerance_weights list", env(tolerance_weights=[1.0, 2.0]), ["tolerance_weights must be a dict"]),
     ("env render_mode", env(render_mode="ascii"), ["render_mode", "rgb_array"]),
     # -- reset
     ("reset seed float", reset(seed=1.5), ["seed must be an integer >= 0"]),

@@ -103,12 +103,13 @@ def _paired_time_errors(events: list, reference: list) -> tuple[float, int]:
 
 
 def compare_episode(plan: EpisodePlan, rtol: float = DEFAULT_RTOL, atol: float = DEFAULT_ATOL,
-                    exact_switches: bool = True) -> dict:
-    """Run the plan at (rtol, atol) and at the reference tolerances (with exact switches);
-    the worst errors."""
+                    exact_switches: bool = True, tolerance_weights: dict | None = None) -> dict:
+    """Run the plan at (rtol, atol, tolerance_weights) and at the reference tolerances (with exact
+    switches, unweighted); the worst errors."""
     from scara_gym.envs.scara_env import ScaraEnv
 
-    runs = [ScaraEnv(**plan.env_kwargs, rtol=rtol, atol=atol, exact_switches=exact_switches),
+    runs = [ScaraEnv(**plan.env_kwargs, rtol=rtol, atol=atol, exact_switches=exact_switches,
+                     tolerance_weights=tolerance_weights),
             ScaraEnv(**plan.env_kwargs, rtol=REFERENCE_TOLERANCES[0], atol=REFERENCE_TOLERANCES[1],
                      exact_switches=True)]
     for env in runs:
@@ -146,8 +147,8 @@ def plans(episodes: int, seed: int = 0) -> list[EpisodePlan]:
 
 
 def run(episodes: int = 200, seed: int = 0, rtol: float = DEFAULT_RTOL, atol: float = DEFAULT_ATOL,
-        exact_switches: bool = True) -> list[dict]:
-    return [compare_episode(plan, rtol, atol, exact_switches) for plan in plans(episodes, seed)]
+        exact_switches: bool = True, tolerance_weights: dict | None = None) -> list[dict]:
+    return [compare_episode(plan, rtol, atol, exact_switches, tolerance_weights) for plan in plans(episodes, seed)]
 
 
 def summary(rows: list[dict]) -> dict:

@@ -158,6 +158,9 @@ class ScaraEnv(gym.Env):
       found; the saturation is a located switch, not a kink); Scara-C11-v1 and -v2
       register True. False is the first releases' integration (Scara-C11-v0), which sees switches at the
       ends of integration steps only.
+    - tolerance_weights (None): a dict from state groups ("q", "rate", "current",
+      "energy") to a factor in [1e-3, 1e3] on rtol and atol for that group's
+      components (the others 1), e.g. {"q": 0.03, "current": 30}; no id registers it.
     - randomize_params (False): False, True ("physics"), "physics", "wall", "all" or a
       dict {dotted path: (low, high)}: parameters drawn per episode, see the starting
       state; the observation bounds then hold the ranges' ends.
@@ -217,13 +220,14 @@ class ScaraEnv(gym.Env):
                  rtol: float = 1e-5, atol: float = 1e-6, exact_switches: bool = False,
                  randomize_params=False, observation_noise: dict | None = None, action_delay: int = 0,
                  action_rate_limit: float | None = None, render_mode: str | None = None,
-                 sensor_noise: dict | None = None, randomize_start=False) -> None:
+                 sensor_noise: dict | None = None, randomize_start=False,
+                 tolerance_weights: dict | None = None) -> None:
         self.task = ScaraTask(control_mode, obstacle, collision, target, start, randomize_target,
                               reward_weights, control_dt, time_limit, params, rtol, atol,
                               exact_switches, num_robots=1, randomize_params=randomize_params,
                               observation_noise=observation_noise, action_delay=action_delay,
                               action_rate_limit=action_rate_limit, sensor_noise=sensor_noise,
-                              randomize_start=randomize_start)
+                              randomize_start=randomize_start, tolerance_weights=tolerance_weights)
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
             raise ValueError(f"render_mode must be one of {self.metadata['render_modes']} or None, "
                              f"got {render_mode!r}")

@@ -221,7 +221,7 @@ class ScaraTask:
                  rtol: float = 1e-5, atol: float = 1e-6, exact_switches: bool = False,
                  num_robots: int = 1, randomize_params=False, observation_noise: dict | None = None,
                  action_delay: int = 0, action_rate_limit: float | None = None, sensor_noise: dict | None = None,
-                 randomize_start=False) -> None:
+                 randomize_start=False, tolerance_weights: dict | None = None) -> None:
         self.arguments = {name: value for name, value in locals().items() if name not in ("self", "__class__")}
         """the constructor's arguments as given: a model of this task (the shield's) is built from them"""
         self.control_mode = checks.choice("control_mode", control_mode, CONTROL_MODES)
@@ -245,6 +245,7 @@ class ScaraTask:
         self.rtol = check_tolerance("rtol", rtol)
         self.atol = check_tolerance("atol", atol)
         self.exact_switches = checks.flag("exact_switches", exact_switches)
+        self.tolerance_weights = checks.tolerance_weights(tolerance_weights, R.STATE_GROUPS)
         num_robots = checks.integer("num_robots", num_robots, 1, MAX_ROBOTS)
         self.default_target = self.check_joints(target if target is not None else self.params.task.target, "target")
         self.default_start = self.check_joints(start if start is not None else self.params.task.start, "start")
@@ -270,6 +271,7 @@ class ScaraTask:
         config["stops"] = stops
         config["max_steps"] = 2_000_000
         config["rtol"], config["atol"] = self.rtol, self.atol
+        config["tolerance_weights"] = self.tolerance_weights
         config["exact_switches"] = self.exact_switches
         self.task = np.zeros(1, dtype=TASK)
         constants = self.task[0]

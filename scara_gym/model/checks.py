@@ -132,6 +132,18 @@ def tolerance(name: str, value: Any) -> float:
     return real(name, value, low, high)
 
 
+TOLERANCE_WEIGHT_RANGE = (1e-3, 1e3)
+
+
+def tolerance_weights(value: Any, groups: dict) -> np.ndarray:
+    """A factor on rtol and atol per state component from None (all 1) or a dict of group name
+    (a key of groups, which maps it to its slice of the state) to a factor in TOLERANCE_WEIGHT_RANGE."""
+    weights = np.ones(max(part.stop for part in groups.values()))
+    for group, factor in mapping("tolerance_weights", value, groups).items():
+        weights[groups[group]] = real(f"tolerance_weights[{group!r}]", factor, *TOLERANCE_WEIGHT_RANGE)
+    return weights
+
+
 def mapping(name: str, value: Any, allowed_keys) -> dict:
     """None (an empty dict) or a mapping whose keys are among allowed_keys."""
     if value is None:

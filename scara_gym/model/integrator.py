@@ -576,9 +576,9 @@ def initial_step(x, f0, robot, p, config, volts, scale, y1, f1):
     """Hairer's starting step, as scipy's select_initial_step (order 5); scale, y1 and f1
     are work vectors of the state's size."""
     n = x.shape[0]
-    rtol, atol = config.rtol, config.atol
+    rtol, atol, weights = config.rtol, config.atol, config.tolerance_weights
     for i in range(n):
-        scale[i] = atol + rtol * abs(x[i])
+        scale[i] = (atol + rtol * abs(x[i])) * weights[i]
     d0 = rms_norm(x, scale)
     d1 = rms_norm(f0, scale)
     h0 = 1e-6 if (d0 < 1e-5 or d1 < 1e-5) else 0.01 * d0 / d1
@@ -681,6 +681,7 @@ def integrate_timed(robot, p, config, t_end, log, samples, workspace, timers):
     bracket = small[8, :4]  # the searches' result
     x = robot.x
     rtol, atol = config.rtol, config.atol
+    weights = config.tolerance_weights
 
     t = robot.t
     settle_saturation(x, robot, p, config)
@@ -730,7 +731,7 @@ def integrate_timed(robot, p, config, t_end, log, samples, workspace, timers):
         for i in range(n):
             err_vec[i] = h_step * (E1 * k[0, i] + E3 * k[2, i] + E4 * k[3, i] + E5 * k[4, i]
                                    + E6 * k[5, i] + E7 * k[6, i])
-            scale[i] = atol + rtol * max(abs(x[i]), abs(y_new[i]))
+            scale[i] = (atol + rtol * max(abs(x[i]), abs(y_new[i]))) * weights[i]
         err = rms_norm(err_vec, scale)
         finite = math.isfinite(err)
         if not finite or err > 1.0:  # rejected: a non-finite state shrinks the step tenfold

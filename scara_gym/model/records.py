@@ -40,6 +40,9 @@ def field_offset(dtype: np.dtype, name: str) -> int:
 
 Q, RATE, CURRENT, ENERGY = (field_offset(STATE, name) for name in STATE.names)
 N_STATE = STATE.itemsize // STATE["q"].base.itemsize
+STATE_GROUPS = {name: slice(field_offset(STATE, name), field_offset(STATE, name) + int(np.prod(STATE[name].shape)))
+                for name in STATE.names}
+"""each STATE field's slice of the state read as a flat vector"""
 
 PARAMS = np.dtype([
     # mechanics (ArmParams and its derived inertias)
@@ -65,6 +68,7 @@ CONFIG = np.dtype([
     ("wall", B1),           # track crossings of the wall plane (collisions)
     ("max_steps", I8),      # accepted + rejected step budget of one call
     ("rtol", F8), ("atol", F8),  # error tolerances, scipy's meaning
+    ("tolerance_weights", F8, N_STATE),  # per state component: a factor on both tolerances
     ("exact_switches", B1),  # the PD saturation a located mode, every switch searched inside steps
 ], align=True)  # aligned fields: numba-cuda loads only aligned ones
 

@@ -186,6 +186,8 @@ class Simulator:
             of steps, and the saturation is a kink left to step-size control.
         max_step: largest integration step [s].
         record: keep samples (capacity); 0 for none.
+        tolerance_weights: None, or a dict from state groups ("q", "rate", "current", "energy")
+            to a factor in [1e-3, 1e3] on both tolerances for that group's components.
     """
 
     def __init__(self, params: ScaraParams = DEFAULT_PARAMS, *, form: str = "explicit",
@@ -193,7 +195,7 @@ class Simulator:
                  decelerate: bool = False, wall: bool = False, stop: Sequence[str] = ("target",),
                  rtol: float = REFERENCE_RTOL, atol: float = REFERENCE_ATOL,
                  exact_switches: bool = False, max_step: float = 0.01, max_steps: int = 2_000_000,
-                 record: int = 200_000, max_events: int = 10_000) -> None:
+                 record: int = 200_000, max_events: int = 10_000, tolerance_weights: dict | None = None) -> None:
         self.params = params = resolve_params(params)
         self.p = np.array([params.to_record()], dtype=R.PARAMS)
         self.config = np.zeros(1, dtype=R.CONFIG)
@@ -214,6 +216,7 @@ class Simulator:
         config["rtol"] = self.rtol = check_tolerance("rtol", rtol)
         config["atol"] = self.atol = check_tolerance("atol", atol)
         config["exact_switches"] = checks.flag("exact_switches", exact_switches)
+        config["tolerance_weights"] = checks.tolerance_weights(tolerance_weights, R.STATE_GROUPS)
         self.robots = np.zeros(1, dtype=R.ROBOT)
         self.robot = self.robots[0]
         self.robot["max_step"] = checks.real("max_step", max_step, 0.0, 1.0, unit="s", low_open=True)

@@ -52,6 +52,29 @@ def test_loose_tolerance_stays_close():
     assert loose.reach_time == pytest.approx(point_to_point().reach_time, abs=1e-6)
 
 
+def _task_b_with(**kwargs) -> Simulator:
+    sim = Simulator(stop=("target",), record=0, exact_switches=True, **kwargs)
+    sim.reset(start_state(DEFAULT_PARAMS), command=DEFAULT_PARAMS.task.target)
+    assert sim.status_name(sim.advance(3.0)) == "target"
+    return sim
+
+
+def test_tolerance_weights_scale_each_groups_tolerances(task_b):
+    plain = _task_b_with(rtol=1e-7, atol=1e-9)
+    ones = _task_b_with(rtol=1e-7, atol=1e-9, tolerance_weights={"q": 1.0, "rate": 1.0, "current": 1.0})
+    assert np.array_equal(ones.x, plain.x) and ones.robot["n_rhs"] == plain.robot["n_rhs"]
+    # the currents dominate the error estimate: loosening theirs alone saves steps, tightening q costs some
+    loose_currents = _task_b_with(rtol=1e-7, atol=1e-9, tolerance_weights={"current": 30.0})
+    tight_q = _task_b_with(rtol=1e-7, atol=1e-9, tolerance_weights={"q": 0.01})
+    assert loose_currents.robot["n_rhs"] < plain.robot["n_rhs"] < tight_q.robot["n_rhs"]
+    reference = task_b.reach_time
+    for sim in (plain, loose_currents, tight_q):
+        assert sim.robot["t"] == pytest.approx(reference, abs=1e-6)
+    # a weight applies to its group only: an energy weight leaves the motion's steps alone
+    energy = _task_b_with(rtol=1e-7, atol=1e-9, tolerance_weights={"energy": 1000.0})
+    assert np.abs(energy.x[:9] - plain.x[:9]).max() < 1e-6
+
+
 def test_implicit_and_explicit_forms_agree():
     result = compare_forms(repeats=1)
     assert result.max_relative_difference < 1e-8
