@@ -1,6 +1,7 @@
 """Behaviour is unchanged by refactoring: digests of seeded rollouts of both environments in
 both control modes, recorded on the code before the "One house" restructuring (0.1.0) for
-Scara-C11-v0 and at its registration for Scara-C11-v1, and the tables of ``scara-c11 reproduce`` (tests/benchmark/test_cli.py)."""
+Scara-C11-v0, at its registration for Scara-C11-v1 and at commit d8dd043 for Scara-C11-v2, and
+the tables of ``scara-c11 reproduce`` (tests/benchmark/test_cli.py)."""
 
 import hashlib
 
@@ -37,6 +38,14 @@ RECORDED_V1 = {
     "pd": "1bab46552947034bb43bbec7a44f874caa9b6a8d9d526e31e9bdbc0b57328d6d",
     "pd-free": "e72968e732d957aeb84477a82eee038a1f5de1431b59665a75435c1a5d12be6a",
     "voltage": "ee540adc65830b4ce5d589f708fec46219c71bd4c2b37c38487c3c589643d248",
+}
+
+# Scara-C11-v2 (exact switches, rtol 1e-7, atol 1e-9), 2,000 single-env steps, recorded at commit
+# d8dd043 (before the switch search was restructured): v2 is frozen like the older ids
+RECORDED_V2 = {
+    "pd": "d4893376ad5813cfa4c11c6d0d7483d0c4cb94e4e061f9dbea348fa463893b50",
+    "pd-free": "58737df94d6116ee312039b59df1045cc5981ba2d4247c874c13c21155a0dfc9",
+    "voltage": "bf0c28480e24fb39a43cd200667d106d852029c18fa587c0359d8686a5e3f554",
 }
 
 
@@ -102,6 +111,11 @@ def test_vector_env_rollouts_are_bit_identical_to_the_recorded_ones(name, autore
 @pytest.mark.parametrize("name", CONFIGS)
 def test_v1_rollouts_are_bit_identical_to_the_recorded_ones(name):
     assert single_env_digest(CONFIGS[name], env_id="Scara-C11-v1") == RECORDED_V1[name]
+
+
+@pytest.mark.parametrize("name", CONFIGS)
+def test_v2_rollouts_are_bit_identical_to_the_recorded_ones(name):
+    assert single_env_digest(CONFIGS[name], env_id="Scara-C11-v2") == RECORDED_V2[name]
 
 
 def test_the_digest_sees_a_change():

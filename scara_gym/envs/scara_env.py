@@ -160,7 +160,8 @@ class ScaraEnv(gym.Env):
       ends of integration steps only.
     - tolerance_weights (None): a dict from state groups ("q", "rate", "current",
       "energy") to a factor in [1e-3, 1e3] on rtol and atol for that group's
-      components (the others 1), e.g. {"q": 0.03, "current": 30}; no id registers it.
+      components (the others 1), e.g. {"q": 0.03, "current": 30}; no id registers it
+      (at v2's tolerances those weights miss the current target on a held-out episode).
     - randomize_params (False): False, True ("physics"), "physics", "wall", "all" or a
       dict {dotted path: (low, high)}: parameters drawn per episode, see the starting
       state; the observation bounds then hold the ranges' ends.

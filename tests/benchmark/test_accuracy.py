@@ -104,3 +104,14 @@ def test_plans_are_reproducible():
     again = accuracy.plans(8, seed=0)
     for a, b in zip(SAMPLE, again):
         assert a.env_kwargs == b.env_kwargs and np.array_equal(a.actions, b.actions)
+
+
+def test_the_latest_id_meets_every_target_on_a_held_out_voltage_jump_episode():
+    """Seed 10's episode 40: outside the seeds (0-5) the tolerances were chosen on, six voltage jumps
+    at critical switches, where the current error follows the global position error; the tolerance
+    weights {"q": 0.03, "current": 30} miss the current target here (experiments log, 2026-12-03)."""
+    plan = accuracy.plans(41, seed=10)[40]
+    row = accuracy.compare_episode(plan)
+    assert row["voltage_jumps"] > 0 and row["unpaired_events"] == 0 and row["ended_together"], row
+    for name, target in accuracy.TARGETS.items():
+        assert row[name] <= target, (name, row)
