@@ -30,7 +30,7 @@ import numpy as np
 
 import scara_gym  # noqa: F401  (registers the ids)
 from scara_gym.benchmark.accuracy import TARGETS, run, summary
-from scara_gym.benchmark.bench import _compiled_run
+from scara_gym.benchmark.bench import fastest_compiled_runs
 from scara_gym.envs.core import step_robot
 
 WEIGHTS = {"q": 0.03, "current": 30}
@@ -80,12 +80,7 @@ def compiled_times(steps: int = 1500, rounds: int = 5) -> None:
     candidates["v2 + weights, switches at step ends"] = ("Scara-C11-v2",
                                                          {"tolerance_weights": WEIGHTS, "exact_switches": False})
     envs = {label: gym.make(env_id, control_mode="pd", **kwargs) for label, (env_id, kwargs) in candidates.items()}
-    best = {}
-    for _ in range(rounds):
-        for label, env in envs.items():
-            result = _compiled_run(env, steps)
-            if label not in best or result["untimed"] < best[label]["untimed"]:
-                best[label] = result
+    best = fastest_compiled_runs(envs, steps, rounds)
     v0 = best["v0"]["untimed"]
     for label, result in best.items():
         print(f"   {label}: {result['untimed'] / steps * 1e6:.2f} us ({v0 / result['untimed']:.2f}x v0's speed), "

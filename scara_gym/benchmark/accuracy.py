@@ -103,17 +103,23 @@ def _paired_time_errors(events: list, reference: list) -> tuple[float, int]:
 
 
 def compare_episode(plan: EpisodePlan, rtol: float = DEFAULT_RTOL, atol: float = DEFAULT_ATOL,
-                    exact_switches: bool = True, tolerance_weights: dict | None = None) -> dict:
+                    exact_switches: bool = True, tolerance_weights: dict | None = None,
+                    start_offset: np.ndarray | None = None) -> dict:
     """Run the plan at (rtol, atol, tolerance_weights) and at the reference tolerances (with exact
-    switches, unweighted); the worst errors."""
+    switches, unweighted); the worst errors. start_offset [rad, rad, m]: the run under test starts
+    that far from the plan's start (the problem's conditioning: with the reference's tolerances,
+    how far the exact solution moves for a start that close)."""
     from scara_gym.envs.scara_env import ScaraEnv
 
     runs = [ScaraEnv(**plan.env_kwargs, rtol=rtol, atol=atol, exact_switches=exact_switches,
                      tolerance_weights=tolerance_weights),
             ScaraEnv(**plan.env_kwargs, rtol=REFERENCE_TOLERANCES[0], atol=REFERENCE_TOLERANCES[1],
                      exact_switches=True)]
-    for env in runs:
-        env.reset(seed=plan.index, options=plan.options)
+    offset_options = dict(plan.options)
+    if start_offset is not None:
+        offset_options["start"] = np.asarray(plan.options["start"], dtype=float) + start_offset
+    for env, options in zip(runs, (offset_options, plan.options)):
+        env.reset(seed=plan.index, options=options)
     worst = {"q": 0.0, "rate": 0.0, "current": 0.0, "event_time": 0.0}
     events, ref_events = [], []
     steps, ended_together, rhs = 0, True, 0
@@ -147,8 +153,10 @@ def plans(episodes: int, seed: int = 0) -> list[EpisodePlan]:
 
 
 def run(episodes: int = 200, seed: int = 0, rtol: float = DEFAULT_RTOL, atol: float = DEFAULT_ATOL,
-        exact_switches: bool = True, tolerance_weights: dict | None = None) -> list[dict]:
-    return [compare_episode(plan, rtol, atol, exact_switches, tolerance_weights) for plan in plans(episodes, seed)]
+        exact_switches: bool = True, tolerance_weights: dict | None = None,
+        start_offset: np.ndarray | None = None) -> list[dict]:
+    return [compare_episode(plan, rtol, atol, exact_switches, tolerance_weights, start_offset)
+            for plan in plans(episodes, seed)]
 
 
 def summary(rows: list[dict]) -> dict:

@@ -1,0 +1,135 @@
+"""How well posed `scara-c11 accuracy`'s targets are, and what exact switching costs at each tolerance
+(the experiments log, 2026-12-04, "the conditioning of the accuracy targets, and the cost of exact
+switching at each tolerance").
+
+Prints, in one sitting on this machine:
+1. the linearized model's fastest modes at control-step starts of random "pd" actions (the
+   eigenvalues of the Jacobian of the positions, rates and currents);
+2. over `scara-c11 accuracy`'s plans (seeds 0-11, 200 episodes each), split into the episodes without
+   and with a voltage jump at a critical switch: the worst errors against the rtol 1e-10 reference
+   of (a) the reference itself started 1e-9 rad (and 1e-10 rad) away in q1, the problem's own
+   conditioning, and (b) exact switches at rtol 1e-5, 1e-6 (v1) and 1e-7 (v2), and v0;
+3. the compiled step's time per control step for the same integrations, best of 5 passes over 1,500
+   random actions in each control mode, all in one sitting.
+
+    PYTHONPATH=. python docs/scripts/conditioning.py [--seeds 12] [--skip-accuracy]
+
+About 15 minutes on 2 cores.
+"""
+
+from __future__ import annotations
+
+import argparse
+import warnings
+
+import gymnasium as gym
+import numpy as np
+
+import scara_gym  # noqa: F401  (registers the ids)
+from scara_gym.benchmark.accuracy import TARGETS, run
+from scara_gym.benchmark.bench import fastest_compiled_runs
+from scara_gym.model.dynamics import derivative
+
+ROWS = {  # label -> run() arguments: (rtol, atol, exact_switches, start_offset)
+    "reference, start q1 + 1e-9 rad": (1e-10, 1e-12, True, np.array([1e-9, 0.0, 0.0])),
+    "reference, start q1 + 1e-10 rad": (1e-10, 1e-12, True, np.array([1e-10, 0.0, 0.0])),
+    "exact switches, rtol 1e-5 / atol 1e-7": (1e-5, 1e-7, True, None),
+    "exact switches, rtol 1e-6 / atol 1e-8 (v1)": (1e-6, 1e-8, True, None),
+    "exact switches, rtol 1e-7 / atol 1e-9 (v2)": (1e-7, 1e-9, True, None),
+    "step-end switches, rtol 1e-5 / atol 1e-6 (v0)": (1e-5, 1e-6, False, None),
+}
+TIMED = {  # label -> constructor arguments over Scara-C11-v2's
+    "v0": {"rtol": 1e-5, "atol": 1e-6, "exact_switches": False},
+    "exact, rtol 1e-5 / atol 1e-7": {"rtol": 1e-5, "atol": 1e-7},
+    "v1": {"rtol": 1e-6, "atol": 1e-8},
+    "v2": {},
+}
+
+
+def fastest_modes(cases: int = 40) -> None:
+    """Eigenvalues of the Jacobian (forward differences) at control-step starts, set-point applied."""
+    env = gym.make("Scara-C11-v2", control_mode="pd")
+    task = env.unwrapped.task
+    rng = np.random.default_rng(1)
+    env.reset(seed=1)
+    p, config = task.robot_params[0], task.config[0]
+    volts, out, shifted = np.zeros(3), np.empty(10), np.empty(10)
+    modes = []
+    while len(modes) < cases:
+        robot = task.robots[0].copy()
+        _, _, terminated, truncated, _ = env.step(rng.uniform(-1, 1, 3))
+        if terminated or truncated:
+            env.reset()
+            continue
+        robot["command"] = task.robots[0]["command"]
+        x = robot["x"].copy()
+        f0 = derivative(x, robot, p, config, np.empty(10), volts).copy()
+        jac = np.empty((9, 9))
+        for j in range(9):
+            shifted[:] = x
+            shifted[j] += 1e-7 * max(1.0, abs(x[j]))
+            jac[:, j] = (derivative(shifted, robot, p, config, out, volts)[:9] - f0[:9]) / (shifted[j] - x[j])
+        eigenvalues = np.linalg.eigvals(jac)
+        modes.append(eigenvalues)
+    fast = [z for case in modes for z in case if abs(z) > 100.0]  # the electromechanical modes
+    oscillating = [z for z in fast if abs(z.imag) > 1.0]
+    slowest = min(oscillating, key=lambda z: -z.real)
+    print(f"1. the modes faster than 100/s of the linearized model at {cases} control-step starts (random 'pd' "
+          f"actions, seed 1): {len(fast) / cases:.1f} per start, |lambda| {min(map(abs, fast)):.0f}-"
+          f"{max(map(abs, fast)):.0f}/s, {len(oscillating) / cases:.1f} of them oscillating; the least damped "
+          f"{slowest.real:.0f}{slowest.imag:+.0f}i/s keeps e^{slowest.real * 0.01:.1f} = "
+          f"{np.exp(slowest.real * 0.01):.2f} of its amplitude over a 0.01 s control step")
+    print("   at the first start: " + ", ".join(f"{z.real:.0f}{z.imag:+.0f}i" for z in modes[0] if abs(z) > 100.0),
+          flush=True)
+
+
+def worst(rows: list[dict]) -> str:
+    if not rows:
+        return "no episodes"
+    cells = []
+    for name, target in TARGETS.items():
+        value = max(row[name] for row in rows)
+        over = sum(row[name] > target for row in rows)
+        cells.append(f"{name} {value:.1e} ({value / target:.2f}{f', {over} over' if over else ''})")
+    return "; ".join(cells)
+
+
+def accuracy_rows(seeds: int) -> None:
+    print(f"2. worst error against the rtol 1e-10 reference (ratio to the target), seeds 0-{seeds - 1} x 200 episodes")
+    for label, (rtol, atol, exact, offset) in ROWS.items():
+        rows = [row for seed in range(seeds) for row in run(200, seed, rtol, atol, exact, None, offset)]
+        jumps = [row for row in rows if row["voltage_jumps"]]
+        smooth = [row for row in rows if not row["voltage_jumps"]]
+        rhs = sum(r["rhs_per_step"] * r["steps"] for r in rows) / sum(r["steps"] for r in rows)
+        print(f"   {label} ({rhs:.1f} RHS per control step)\n"
+              f"      {len(smooth)} episodes without a voltage jump: {worst(smooth)}\n"
+              f"      {len(jumps)} with one: {worst(jumps)}", flush=True)
+
+
+def compiled_times(steps: int = 1500, rounds: int = 5) -> None:
+    print(f"3. compiled step [us per control step], best of {rounds} passes over {steps} random actions")
+    for control_mode in ("pd", "voltage"):
+        envs = {label: gym.make("Scara-C11-v2", control_mode=control_mode, **kwargs) for label, kwargs in TIMED.items()}
+        best = fastest_compiled_runs(envs, steps, rounds)
+        v0 = best["v0"]["untimed"]
+        for label, result in best.items():
+            print(f"   {control_mode}, {label}: {result['untimed'] / steps * 1e6:.2f} us ({v0 / result['untimed']:.2f}x "
+                  f"v0's speed), {result['rhs'] / steps:.1f} RHS and {result['steps'] / steps:.1f} integration steps "
+                  f"per control step", flush=True)
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--seeds", type=int, default=12)
+    parser.add_argument("--skip-accuracy", action="store_true")
+    args = parser.parse_args()
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", DeprecationWarning)  # v0 and v1's settings are measured on purpose
+        fastest_modes()
+        if not args.skip_accuracy:
+            accuracy_rows(args.seeds)
+        compiled_times()
+
+
+if __name__ == "__main__":
+    main()
