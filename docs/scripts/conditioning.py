@@ -3,23 +3,26 @@
 switching at each tolerance").
 
 Prints, in one sitting on this machine:
-1. the linearized model's fastest modes at control-step starts of random "pd" actions (the
-   eigenvalues of the Jacobian of the positions, rates and currents);
+1. the fastest eigenvalues of the linearized model (the Jacobian of the positions, rates and
+   currents) at control-step starts of random "pd" actions;
 2. over `scara-c11 accuracy`'s plans (seeds 0-11, 200 episodes each), split into the episodes without
-   and with a voltage jump at a critical switch: the worst errors against the rtol 1e-10 reference
-   of (a) the reference itself started 1e-9 rad (and 1e-10 rad) away in q1, the problem's own
-   conditioning, and (b) exact switches at rtol 1e-5, 1e-6 (v1) and 1e-7 (v2), and v0;
+   and with a voltage jump at a critical switch in the "voltage" mode: the worst errors against the
+   rtol 1e-10 reference, with the worst episode, of (a) the reference itself started 1e-9 rad (and
+   1e-10 rad) away in q1, the problem's own conditioning, and (b) exact switches at rtol 1e-5, 1e-6
+   (v1) and 1e-7 (v2), and v0; then v1's episodes over the current target among those without a
+   "voltage"-mode jump, with their critical switches and their spread under the 1e-9 rad start;
 3. the compiled step's time per control step for the same integrations, best of 5 passes over 1,500
    random actions in each control mode, all in one sitting.
 
-    PYTHONPATH=. python docs/scripts/conditioning.py [--seeds 12] [--skip-accuracy]
+    PYTHONPATH=. python docs/scripts/conditioning.py [--seeds 12] [--skip-accuracy] [--skip-timing]
 
-About 15 minutes on 2 cores.
+About 15 minutes on 2 cores (the accuracy section about 12).
 """
 
 from __future__ import annotations
 
 import argparse
+import time
 import warnings
 
 import gymnasium as gym
@@ -72,11 +75,11 @@ def fastest_modes(cases: int = 40) -> None:
         eigenvalues = np.linalg.eigvals(jac)
         modes.append(eigenvalues)
     fast = [z for case in modes for z in case if abs(z) > 100.0]  # the electromechanical modes
-    oscillating = [z for z in fast if abs(z.imag) > 1.0]
+    oscillating = [z for z in fast if abs(z.imag) > 1.0] or [complex(0.0)]
     slowest = min(oscillating, key=lambda z: -z.real)
-    print(f"1. the modes faster than 100/s of the linearized model at {cases} control-step starts (random 'pd' "
-          f"actions, seed 1): {len(fast) / cases:.1f} per start, |lambda| {min(map(abs, fast)):.0f}-"
-          f"{max(map(abs, fast)):.0f}/s, {len(oscillating) / cases:.1f} of them oscillating; the least damped "
+    print(f"1. the eigenvalues faster than 100/s of the linearized model at {cases} control-step starts (random "
+          f"'pd' actions, seed 1): {len(fast) / cases:.1f} per start, |lambda| {min(map(abs, fast)):.0f}-"
+          f"{max(map(abs, fast)):.0f}/s, {len(oscillating) / cases:.1f} of them complex; the least damped "
           f"{slowest.real:.0f}{slowest.imag:+.0f}i/s keeps e^{slowest.real * 0.01:.1f} = "
           f"{np.exp(slowest.real * 0.01):.2f} of its amplitude over a 0.01 s control step")
     print("   at the first start: " + ", ".join(f"{z.real:.0f}{z.imag:+.0f}i" for z in modes[0] if abs(z) > 100.0),
@@ -84,26 +87,51 @@ def fastest_modes(cases: int = 40) -> None:
 
 
 def worst(rows: list[dict]) -> str:
+    """The worst of each quantity (ratio to its target, episodes over it, the worst episode as seed/index),
+    then the events without a partner and the episodes that ended apart."""
     if not rows:
         return "no episodes"
     cells = []
     for name, target in TARGETS.items():
-        value = max(row[name] for row in rows)
-        over = sum(row[name] > target for row in rows)
-        cells.append(f"{name} {value:.1e} ({value / target:.2f}{f', {over} over' if over else ''})")
-    return "; ".join(cells)
+        row = max(rows, key=lambda r: r[name])
+        over = sum(r[name] > target for r in rows)
+        cells.append(f"{name} {row[name]:.1e} ({row[name] / target:.2f}{f', {over} over' if over else ''}; "
+                     f"{row['seed']}/{row['index']})")
+    unpaired = sum(r["unpaired_events"] for r in rows)
+    apart = sum(not r["ended_together"] for r in rows)
+    return "; ".join(cells) + f"; {unpaired} events without a partner, {apart} episodes ended apart"
 
 
-def accuracy_rows(seeds: int) -> None:
-    print(f"2. worst error against the rtol 1e-10 reference (ratio to the target), seeds 0-{seeds - 1} x 200 episodes")
+def accuracy_rows(seeds: int) -> dict:
+    print(f"2. worst error against the rtol 1e-10 reference (ratio to the target; episodes over it; the worst "
+          f"episode as seed/index), seeds 0-{seeds - 1} x 200 episodes")
+    results = {}
     for label, (rtol, atol, exact, offset) in ROWS.items():
-        rows = [row for seed in range(seeds) for row in run(200, seed, rtol, atol, exact, None, offset)]
+        started = time.perf_counter()
+        rows = results[label] = [{**row, "seed": seed} for seed in range(seeds)
+                                 for row in run(200, seed, rtol, atol, exact, None, offset)]
         jumps = [row for row in rows if row["voltage_jumps"]]
         smooth = [row for row in rows if not row["voltage_jumps"]]
         rhs = sum(r["rhs_per_step"] * r["steps"] for r in rows) / sum(r["steps"] for r in rows)
-        print(f"   {label} ({rhs:.1f} RHS per control step)\n"
-              f"      {len(smooth)} episodes without a voltage jump: {worst(smooth)}\n"
+        print(f"   {label} ({rhs:.1f} RHS per control step; {time.perf_counter() - started:.0f} s)\n"
+              f"      {len(smooth)} episodes without a voltage-mode jump: {worst(smooth)}\n"
               f"      {len(jumps)} with one: {worst(jumps)}", flush=True)
+    return results
+
+
+def pd_jumps(results: dict) -> None:
+    """v1's episodes over the current target among those without a voltage-mode jump: are they "pd"
+    episodes with critical switches, and how far does the 1e-9 rad start move their currents?"""
+    v1 = "exact switches, rtol 1e-6 / atol 1e-8 (v1)"
+    spread = {(r["seed"], r["index"]): r for r in results["reference, start q1 + 1e-9 rad"]}
+    print(f"   {v1}, over the current target without a voltage-mode jump:")
+    for row in results[v1]:
+        if row["current"] > TARGETS["current"] and not row["voltage_jumps"]:
+            moved = spread[row["seed"], row["index"]]
+            print(f"      seed {row['seed']}, episode {row['index']}: {row['control_mode']} mode, obstacle "
+                  f"{row['obstacle']}, {row['critical_switches']} critical switches; current {row['current']:.1e} A, "
+                  f"event time {row['event_time']:.1e} s, q {row['q']:.1e}; the reference started 1e-9 rad away: "
+                  f"current {moved['current']:.1e} A, event time {moved['event_time']:.1e} s", flush=True)
 
 
 def compiled_times(steps: int = 1500, rounds: int = 5) -> None:
@@ -122,13 +150,15 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seeds", type=int, default=12)
     parser.add_argument("--skip-accuracy", action="store_true")
+    parser.add_argument("--skip-timing", action="store_true")
     args = parser.parse_args()
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", DeprecationWarning)  # v0 and v1's settings are measured on purpose
         fastest_modes()
         if not args.skip_accuracy:
-            accuracy_rows(args.seeds)
-        compiled_times()
+            pd_jumps(accuracy_rows(args.seeds))
+        if not args.skip_timing:
+            compiled_times()
 
 
 if __name__ == "__main__":

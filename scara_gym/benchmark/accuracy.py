@@ -117,6 +117,9 @@ def compare_episode(plan: EpisodePlan, rtol: float = DEFAULT_RTOL, atol: float =
                      exact_switches=True)]
     offset_options = dict(plan.options)
     if start_offset is not None:
+        start_offset = np.asarray(start_offset, dtype=float)
+        if start_offset.shape != (3,) or not np.all(np.isfinite(start_offset)):
+            raise ValueError(f"start_offset must be 3 finite numbers [rad, rad, m], got {start_offset!r}")
         offset_options["start"] = np.asarray(plan.options["start"], dtype=float) + start_offset
     for env, options in zip(runs, (offset_options, plan.options)):
         env.reset(seed=plan.index, options=options)
@@ -140,11 +143,14 @@ def compare_episode(plan: EpisodePlan, rtol: float = DEFAULT_RTOL, atol: float =
             break
     worst["event_time"], unpaired = _paired_time_errors(events, ref_events)
     rhs = int(runs[0].task.robots[0]["n_rhs"])  # counted over the episode
-    limit_switches = sum(code in (R.EV_CRITICAL_ON, R.EV_CRITICAL_OFF) for code, _, _ in ref_events) \
-        if plan.env_kwargs["control_mode"] == "voltage" else 0
+    critical_switches = sum(code in (R.EV_CRITICAL_ON, R.EV_CRITICAL_OFF) for code, _, _ in ref_events)
+    # in the voltage mode every critical switch jumps the voltage (the limit the action scales doubles
+    # or halves); in the pd mode only an axis saturated at the switch does
+    limit_switches = critical_switches if plan.env_kwargs["control_mode"] == "voltage" else 0
     return {"index": plan.index, "program": plan.program, **plan.env_kwargs, **worst, "steps": steps,
             "events": len(ref_events), "unpaired_events": unpaired, "ended_together": ended_together,
-            "rhs_per_step": rhs / steps, "voltage_jumps": limit_switches}
+            "rhs_per_step": rhs / steps, "voltage_jumps": limit_switches, "critical_switches": critical_switches,
+            "start_offset": None if start_offset is None else tuple(start_offset.tolist())}
 
 
 def plans(episodes: int, seed: int = 0) -> list[EpisodePlan]:
