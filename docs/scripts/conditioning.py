@@ -32,6 +32,7 @@ import scara_gym  # noqa: F401  (registers the ids)
 from scara_gym.benchmark.accuracy import TARGETS, run
 from scara_gym.benchmark.bench import fastest_compiled_runs
 from scara_gym.model.dynamics import derivative
+from scara_gym.model.records import CURRENT, N_STATE
 
 ROWS = {  # label -> run() arguments: (rtol, atol, exact_switches, start_offset)
     "reference, start q1 + 1e-9 rad": (1e-10, 1e-12, True, np.array([1e-9, 0.0, 0.0])),
@@ -56,7 +57,8 @@ def fastest_modes(cases: int = 40) -> None:
     rng = np.random.default_rng(1)
     env.reset(seed=1)
     p, config = task.robot_params[0], task.config[0]
-    volts, out, shifted = np.zeros(3), np.empty(10), np.empty(10)
+    n = CURRENT + 3  # positions, rates and currents (the energy feeds nothing back)
+    volts, out, shifted = np.zeros(3), np.empty(N_STATE), np.empty(N_STATE)
     modes = []
     while len(modes) < cases:
         robot = task.robots[0].copy()
@@ -66,12 +68,12 @@ def fastest_modes(cases: int = 40) -> None:
             continue
         robot["command"] = task.robots[0]["command"]
         x = robot["x"].copy()
-        f0 = derivative(x, robot, p, config, np.empty(10), volts).copy()
-        jac = np.empty((9, 9))
-        for j in range(9):
+        f0 = derivative(x, robot, p, config, np.empty(N_STATE), volts).copy()
+        jac = np.empty((n, n))
+        for j in range(n):
             shifted[:] = x
             shifted[j] += 1e-7 * max(1.0, abs(x[j]))
-            jac[:, j] = (derivative(shifted, robot, p, config, out, volts)[:9] - f0[:9]) / (shifted[j] - x[j])
+            jac[:, j] = (derivative(shifted, robot, p, config, out, volts)[:n] - f0[:n]) / (shifted[j] - x[j])
         eigenvalues = np.linalg.eigvals(jac)
         modes.append(eigenvalues)
     fast = [z for case in modes for z in case if abs(z) > 100.0]  # the electromechanical modes
