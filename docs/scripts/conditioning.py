@@ -29,7 +29,7 @@ import gymnasium as gym
 import numpy as np
 
 import scara_gym  # noqa: F401  (registers the ids)
-from scara_gym.benchmark.accuracy import TARGETS, run
+from scara_gym.benchmark.accuracy import TARGETS, run, summary
 from scara_gym.benchmark.bench import fastest_compiled_runs
 from scara_gym.model.dynamics import derivative
 from scara_gym.model.records import CURRENT, N_STATE
@@ -89,19 +89,19 @@ def fastest_modes(cases: int = 40) -> None:
 
 
 def worst(rows: list[dict]) -> str:
-    """The worst of each quantity (ratio to its target, episodes over it, the worst episode as seed/index),
-    then the events without a partner and the episodes that ended apart."""
+    """summary()'s worst of each quantity (ratio to its target, episodes over it) with the worst episode
+    as seed/index, then its events without a partner and its episodes that ended apart."""
     if not rows:
         return "no episodes"
+    result = summary(rows)
     cells = []
     for name, target in TARGETS.items():
+        over = len(result["over_target"][name])
         row = max(rows, key=lambda r: r[name])
-        over = sum(r[name] > target for r in rows)
-        cells.append(f"{name} {row[name]:.1e} ({row[name] / target:.2f}{f', {over} over' if over else ''}; "
+        cells.append(f"{name} {result[name]:.1e} ({result[name] / target:.2f}{f', {over} over' if over else ''}; "
                      f"{row['seed']}/{row['index']})")
-    unpaired = sum(r["unpaired_events"] for r in rows)
-    apart = sum(not r["ended_together"] for r in rows)
-    return "; ".join(cells) + f"; {unpaired} events without a partner, {apart} episodes ended apart"
+    return "; ".join(cells) + (f"; {result['unpaired_events']} events without a partner, "
+                               f"{result['ended_apart']} episodes ended apart")
 
 
 def accuracy_rows(seeds: int) -> dict:
@@ -114,8 +114,8 @@ def accuracy_rows(seeds: int) -> dict:
                                  for row in run(200, seed, rtol, atol, exact, None, offset)]
         jumps = [row for row in rows if row["voltage_jumps"]]
         smooth = [row for row in rows if not row["voltage_jumps"]]
-        rhs = sum(r["rhs_per_step"] * r["steps"] for r in rows) / sum(r["steps"] for r in rows)
-        print(f"   {label} ({rhs:.1f} RHS per control step; {time.perf_counter() - started:.0f} s)\n"
+        print(f"   {label} ({summary(rows)['rhs_per_step']:.1f} RHS per control step; "
+              f"{time.perf_counter() - started:.0f} s)\n"
               f"      {len(smooth)} episodes without a voltage-mode jump: {worst(smooth)}\n"
               f"      {len(jumps)} with one: {worst(jumps)}", flush=True)
     return results

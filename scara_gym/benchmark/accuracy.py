@@ -111,16 +111,16 @@ def compare_episode(plan: EpisodePlan, rtol: float = DEFAULT_RTOL, atol: float =
     how far the exact solution moves for a start that close)."""
     from scara_gym.envs.scara_env import ScaraEnv
 
-    runs = [ScaraEnv(**plan.env_kwargs, rtol=rtol, atol=atol, exact_switches=exact_switches,
-                     tolerance_weights=tolerance_weights),
-            ScaraEnv(**plan.env_kwargs, rtol=REFERENCE_TOLERANCES[0], atol=REFERENCE_TOLERANCES[1],
-                     exact_switches=True)]
     offset_options = dict(plan.options)
     if start_offset is not None:
         start_offset = np.asarray(start_offset, dtype=float)
         if start_offset.shape != (3,) or not np.all(np.isfinite(start_offset)):
             raise ValueError(f"start_offset must be 3 finite numbers [rad, rad, m], got {start_offset!r}")
         offset_options["start"] = np.asarray(plan.options["start"], dtype=float) + start_offset
+    runs = [ScaraEnv(**plan.env_kwargs, rtol=rtol, atol=atol, exact_switches=exact_switches,
+                     tolerance_weights=tolerance_weights),
+            ScaraEnv(**plan.env_kwargs, rtol=REFERENCE_TOLERANCES[0], atol=REFERENCE_TOLERANCES[1],
+                     exact_switches=True)]
     for env, options in zip(runs, (offset_options, plan.options)):
         env.reset(seed=plan.index, options=options)
     worst = {"q": 0.0, "rate": 0.0, "current": 0.0, "event_time": 0.0}
