@@ -1,7 +1,7 @@
 """``scara-agents``: the agents' one console script.
 
     scara-agents evaluate --policies pd dec-continue:0.06 ppo:ppo_pd --episodes 100 --out results/pd
-    scara-agents train ppo-residual --env-id Scara-C11-v0 --seed 0 --out runs/ppo_pd
+    scara-agents train ppo-residual --seed 0 --out runs/ppo_residual
     scara-agents torch-ppo --total-timesteps 2000000 --out runs/torch_ppo
     scara-agents campaign ppo sac td3 --seeds 0 1 2 3 4
     scara-agents compare --runs docs/results/runs --episodes 30 --out docs/results
@@ -25,7 +25,6 @@ import dataclasses
 import json
 import os
 import sys
-import warnings
 from pathlib import Path
 
 from agents.algorithms.bc_config import BCConfig
@@ -45,8 +44,8 @@ from agents.files import TRUST_ENV, RunLocked, write_json
 from agents.policies.optimal import CollocationConfig
 from agents.policies.optimal.policy import solve_reference
 from scara_gym import DEFAULT_PARAMS
-from scara_gym.benchmark.protocol import CONDITIONS, FIXED_SHIFTS, protocol_record
-from scara_gym.registration import ENV_ID, ENV_IDS, TRAINING_ENV_ID
+from scara_gym.benchmark.protocol import CONDITIONS, ENV_ID, FIXED_SHIFTS, protocol_record
+from scara_gym.registration import ENV_IDS
 
 MODES = ("pd", "voltage")
 
@@ -75,7 +74,8 @@ def _add_evaluate(sub) -> None:
                    help="policy specs: pd, dec-continue[:d], dec-restart[:d], optimal, ppo:NAME_OR_DIR, "
                         "sb3:RUN_DIR, torchppo:RUN_DIR, shield:SPEC")
     p.add_argument("--env-id", choices=ENV_IDS, default=ENV_ID,
-                   help="the shipped PPO agents and tables use Scara-C11-v0; the optimal reference Scara-C11-v1")
+                   help=f"the id the episodes run on (default: the protocol's, {ENV_ID}; every policy, the "
+                        "shipped PPO agents trained on Scara-C11-v0 included, is scored on it as it is)")
     p.add_argument("--control-mode", choices=MODES, default="pd")
     p.add_argument("--condition", choices=list(CONDITIONS), default="c11",
                    help="a condition of the evaluation protocol (scara_gym.benchmark.protocol), on its own seeds")
@@ -139,7 +139,7 @@ def _add_train(sub) -> None:
                        description="Train one seed of a registered run into --out; --resume continues the run "
                                    "a folder holds, --overwrite replaces it. Registered runs: " + ", ".join(RUNS))
     p.add_argument("name", choices=list(RUNS), metavar="NAME", help="a registered run (agents.experiments.registry)")
-    p.add_argument("--env-id", choices=ENV_IDS, default=TRAINING_ENV_ID)
+    p.add_argument("--env-id", choices=ENV_IDS, default=ENV_ID)
     p.add_argument("--control-mode", choices=MODES, default="pd")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--out", type=Path, default=None, help="default: runs/NAME/seedN")
@@ -249,7 +249,7 @@ def _add_campaign(sub) -> None:
     p.add_argument("names", nargs="*", metavar="NAME", default=[], help="registered runs (default: all): "
                    + ", ".join(RUNS))
     p.add_argument("--seeds", nargs="+", type=int, default=[0, 1, 2, 3, 4])
-    p.add_argument("--env-id", choices=ENV_IDS, default=TRAINING_ENV_ID)
+    p.add_argument("--env-id", choices=ENV_IDS, default=ENV_ID)
     p.add_argument("--control-mode", choices=MODES, default="pd")
     p.add_argument("--runs", type=Path, default=Path("runs/baselines"))
     p.add_argument("--total-timesteps", type=int, default=None, help="default: each run's budget")
@@ -307,7 +307,7 @@ def _compare(args, argv) -> list[dict]:
                                           shielded=tuple(args.shield), pilots=args.pilots,
                                           robust_shield=not args.no_robust_shield, include_mpc=not args.no_mpc)
     args.out.mkdir(parents=True, exist_ok=True)
-    (args.out / "comparison.json").write_text(json.dumps({"env_id": TRAINING_ENV_ID,
+    (args.out / "comparison.json").write_text(json.dumps({"env_id": ENV_ID,
                                                            "command": "scara-agents " + " ".join(argv),
                                                            "conditions": protocol_record(args.conditions),
                                                            "targets": target_checks(entries),
@@ -348,7 +348,7 @@ def _add_sweep(sub) -> None:
                        description="Train and evaluate every (grid point, seed) of a registered run as a Ray Tune "
                                    "trial; sweep.json and sweep.md under --out.")
     p.add_argument("--run", choices=list(RUNS), metavar="NAME", required=True, help="a registered run")
-    p.add_argument("--env-id", choices=ENV_IDS, default=TRAINING_ENV_ID)
+    p.add_argument("--env-id", choices=ENV_IDS, default=ENV_ID)
     p.add_argument("--control-mode", choices=MODES, default="pd")
     p.add_argument("--seeds", nargs="+", type=int, default=[0, 1, 2, 3, 4])
     p.add_argument("--grid", nargs="*", default=[], metavar="NAME=V1,V2",
@@ -536,14 +536,11 @@ def run(argv: list[str] | None = None):
 
 
 def _run_handler(args, argv):
-    with warnings.catch_warnings():
-        # the comparison's runs train and evaluate on Scara-C11-v1 on purpose (TRAINING_ENV_ID)
-        warnings.filterwarnings("ignore", message=r".*Scara-C11-v[01] is out of date", category=DeprecationWarning)
-        try:
-            return args.handler(args, argv)
-        except (UserError, ValueError, TypeError, FileNotFoundError, KeyError, LookupError, RunLocked) as error:
-            if args.debug:
-                raise
-            message = error.args[0] if isinstance(error, KeyError) and error.args else error
-            print(f"scara-agents {args.command}: error: {message}", file=sys.stderr)
-            raise SystemExit(2) from None
+    try:
+        return args.handler(args, argv)
+    except (UserError, ValueError, TypeError, FileNotFoundError, KeyError, LookupError, RunLocked) as error:
+        if args.debug:
+            raise
+        message = error.args[0] if isinstance(error, KeyError) and error.args else error
+        print(f"scara-agents {args.command}: error: {message}", file=sys.stderr)
+        raise SystemExit(2) from None

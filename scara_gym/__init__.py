@@ -23,23 +23,24 @@ from scara_gym.model import (
     Trajectory,
 )
 from scara_gym.registration import (
-    ENV_ID,
     ENV_IDS,
     ENV_KWARGS,
     ENV_VARIANTS,
     ENV_VERSIONS,
     GOAL_ENV_IDS,
     LATEST_ENV_ID,
-    TRAINING_ENV_ID,
+    LATEST_IDS,
+    LATEST_INTEGRATION,
     register_all,
 )
 
-__version__ = "0.3.0"
+__version__ = "0.4.0"
 
 register_all()
 
 __all__ = [
-    "ENV_ID", "ENV_IDS", "ENV_KWARGS", "GOAL_ENV_IDS", "ENV_VARIANTS", "ENV_VERSIONS", "LATEST_ENV_ID", "TRAINING_ENV_ID",
+    "ENV_IDS", "ENV_KWARGS", "GOAL_ENV_IDS", "ENV_VARIANTS", "ENV_VERSIONS", "LATEST_ENV_ID", "LATEST_IDS",
+    "LATEST_INTEGRATION",
     "__version__",
     "ArmParams", "AxisParams", "DEFAULT_PARAMS", "Event", "ObstacleParams", "ScaraParams",
     "SimulationError", "Simulator", "TaskParams", "Trajectory", "compare_forms", "obstacle_avoidance",

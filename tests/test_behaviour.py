@@ -9,7 +9,7 @@ import gymnasium as gym
 import numpy as np
 import pytest
 
-import scara_gym  # noqa: F401
+import scara_gym
 
 pytestmark = pytest.mark.slow  # about 40 s: 22,000 environment steps
 
@@ -49,6 +49,25 @@ RECORDED_V2 = {
 }
 
 
+# the variants, 2,000 single-env steps per configuration: the -v0 ids recorded at commit dfe4f9e
+# (before the variants' -v1 ids and the classes' new defaults), the -v1 ids at their registration
+VARIANT_CONFIGS = {"pd": {"control_mode": "pd"}, "voltage": {"control_mode": "voltage", "collision": "penalty"}}
+RECORDED_VARIANTS = {
+    ("Scara-C11-RandomPhysics-v0", "pd"): "6a22d8091794601268c0ef819beb74de58af3baf4fd4d9a3ed14e773d4102411",
+    ("Scara-C11-RandomPhysics-v0", "voltage"): "b29fbfee3069a9d39f7caae02e4aeb02eabb1bd6e64f308ff971baf770d464c2",
+    ("Scara-C11-RandomWall-v0", "pd"): "7a2728f3157977e99d49ab94e76f9a27803b6ec6bef2d955f24be858ea591d80",
+    ("Scara-C11-RandomWall-v0", "voltage"): "67f29ed2504a74d813bdfe495df4a5eda69277cf58cc1a06b981dc972b70ac08",
+    ("Scara-C11-Goal-v0", "pd"): "b96a757ec52288fbf05fff280d0476798ee8d8a0dc82d05fbfee4e22425821f3",
+    ("Scara-C11-Goal-v0", "voltage"): "4cf4fb66547c88cfdfdaa86c20ffac479bcbcd9ac3d990546ee4bb18176c762f",
+    ("Scara-C11-RandomPhysics-v1", "pd"): "960a9289298d1f23f39c57b0a3f145584609621b4eb1dc3f9cc52d5d1385f56d",
+    ("Scara-C11-RandomPhysics-v1", "voltage"): "afc2527c0ebcd19b29b47ab327cc9a89ad7221197d2e097b75e2b4d473d841f3",
+    ("Scara-C11-RandomWall-v1", "pd"): "46866160892848cd4c3e3eccdab05593ecace64695916d72dfd9153529d16e17",
+    ("Scara-C11-RandomWall-v1", "voltage"): "dffefd350b6df277cd9c0275660363bb3daa3f728f538b186083cb7617c9d50a",
+    ("Scara-C11-Goal-v1", "pd"): "109398f7c83c7fa2ef074f207b44d893a353a06fd068edf093a2373014ff9b55",
+    ("Scara-C11-Goal-v1", "voltage"): "1e2ce7cf538ed64255b1c8632e13f6357f9b293f4f645c6b6722711bd714d9cf",
+}
+
+
 def _feed(digest, value):
     """Every value as float64 bytes, dicts by sorted key: obs, rewards, flags and info."""
     if isinstance(value, dict):
@@ -68,7 +87,7 @@ def _actions(rng, control_mode, n):
 
 
 def single_env_digest(config, steps=2000, seed=0, env_id="Scara-C11-v0"):
-    env = gym.make(env_id, **config)
+    env = gym.make(gym.spec(env_id), **config)  # frozen ids on purpose: from the spec, not called out of date
     rng = np.random.default_rng(seed)
     digest = hashlib.sha256()
     obs, info = env.reset(seed=seed)
@@ -84,7 +103,7 @@ def single_env_digest(config, steps=2000, seed=0, env_id="Scara-C11-v0"):
 
 
 def vector_env_digest(config, autoreset_mode, num_envs=4, steps=500, seed=0):
-    venv = gym.make_vec("Scara-C11-v0", num_envs=num_envs, vectorization_mode="vector_entry_point",
+    venv = gym.make_vec(gym.spec("Scara-C11-v0"), num_envs=num_envs, vectorization_mode="vector_entry_point",
                         autoreset_mode=autoreset_mode, **config)
     rng = np.random.default_rng(seed)
     digest = hashlib.sha256()
@@ -116,6 +135,16 @@ def test_v1_rollouts_are_bit_identical_to_the_recorded_ones(name):
 @pytest.mark.parametrize("name", CONFIGS)
 def test_v2_rollouts_are_bit_identical_to_the_recorded_ones(name):
     assert single_env_digest(CONFIGS[name], env_id="Scara-C11-v2") == RECORDED_V2[name]
+
+
+@pytest.mark.parametrize("env_id, name", sorted(RECORDED_VARIANTS))
+def test_variant_rollouts_are_bit_identical_to_the_recorded_ones(env_id, name):
+    assert single_env_digest(VARIANT_CONFIGS[name], env_id=env_id) == RECORDED_VARIANTS[(env_id, name)]
+
+
+def test_every_registered_id_is_frozen_by_a_digest():
+    frozen = {"Scara-C11-v0", "Scara-C11-v1", "Scara-C11-v2"} | {env_id for env_id, _ in RECORDED_VARIANTS}
+    assert frozen == set(scara_gym.ENV_IDS)
 
 
 def test_the_digest_sees_a_change():

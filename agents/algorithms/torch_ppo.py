@@ -9,9 +9,9 @@ than the arithmetic, and tests hold both to torch's), the rollout and the update
 add-ons (reference resets, demonstrations, target replay, the shield) are hooks beside it
 (:mod:`agents.algorithms.torch_ppo_hooks`).
 
-    scara-agents torch-ppo --env-id Scara-C11-v1 --total-timesteps 2000000 --out runs/torch_ppo
+    scara-agents torch-ppo --total-timesteps 2000000 --out runs/torch_ppo
     scara-agents torch-ppo --device cuda --num-envs 4096 --num-steps 32 --out runs/torch_ppo_gpu
-    scara-agents evaluate --policies torchppo:runs/torch_ppo --env-id Scara-C11-v1
+    scara-agents evaluate --policies torchppo:runs/torch_ppo
 
 A run folder holds ``config.json``, ``model.pt`` (the policy and its observation normalizer,
 what ``TorchPPOPolicy`` loads), ``checkpoint.pt`` (everything to resume: ``--resume``) and

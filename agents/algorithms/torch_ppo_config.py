@@ -6,9 +6,10 @@ from __future__ import annotations
 import dataclasses
 from dataclasses import dataclass, field
 
+from scara_gym.benchmark.protocol import ENV_ID
 from scara_gym.envs.randomization import PRESETS
 from scara_gym.model import checks
-from scara_gym.registration import ENV_IDS, TRAINING_ENV_ID
+from scara_gym.registration import ENV_IDS
 
 INF = float("inf")
 
@@ -17,7 +18,7 @@ INF = float("inf")
 class Config:
     """One run of the single-file PPO (every field a command-line flag of ``scara-agents torch-ppo``)."""
 
-    env_id: str = TRAINING_ENV_ID
+    env_id: str = ENV_ID
     control_mode: str = "pd"
     randomize_target: bool = False
     randomize_params: str | None = None  # domain randomization per episode: a preset of scara_gym.envs.randomization

@@ -10,7 +10,6 @@ from agents.algorithms.sb3 import training
 from agents.algorithms.sb3.hyperparams import load_hyperparams
 from agents.algorithms.torch_ppo import Config, train
 from scara_gym.benchmark.bench import gpu_available
-from scara_gym.registration import ENV_KWARGS
 
 
 def bench_ppo(device: str = "cpu", num_envs: int = 16, num_steps: int = 128, total_timesteps: int = 32768,
@@ -30,7 +29,7 @@ def bench_ppo(device: str = "cpu", num_envs: int = 16, num_steps: int = 128, tot
 
         from scara_gym.integrations.sb3 import SB3VecEnv
 
-        env = VecNormalize(SB3VecEnv(num_envs=num_envs, num_threads=1, **ENV_KWARGS[config.env_id]),
+        env = VecNormalize(SB3VecEnv(num_envs=num_envs, env_id=config.env_id, num_threads=1),
                            gamma=config.gamma)
         model = PPO("MlpPolicy", env, n_steps=num_steps, batch_size=minibatch_size, n_epochs=10, seed=0,
                     device="cpu")

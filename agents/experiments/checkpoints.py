@@ -21,13 +21,12 @@ import gymnasium as gym
 from agents.algorithms.sb3.policy import PPOPolicy
 from agents.files import POLICY_FILES, record_trusted, require_trusted, write_digests, write_json
 from agents.policies import run_episode
-from scara_gym.registration import ENV_ID
 
 
 def evaluate_checkpoints(run: Path, episodes: int = 5, seed: int = 5000) -> list[dict]:
     config = json.loads((run / "config.json").read_text())
     kwargs = {k: config["env_kwargs"][k] for k in ("control_mode", "randomize_target")}
-    env = gym.make(config.get("env_id", ENV_ID), **kwargs)
+    env = gym.make(config.get("env_id", "Scara-C11-v0"), **kwargs)
     rows = []
     require_trusted(run / "checkpoints")  # pickle: the run's own manifest, trusted, before any is staged
     checkpoints = sorted(run.glob("checkpoints/ppo_[0-9]*_steps.zip"), key=lambda p: int(p.stem.split("_")[1]))

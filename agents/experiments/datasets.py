@@ -5,7 +5,7 @@ through Minari's own API (``minari.create_dataset_from_buffers``) into Minari's 
 folder (``MINARI_DATASETS_PATH``, else ``~/.minari/datasets``) or ``out``. Nothing needs the
 network.
 
-| task | environment (``TRAINING_ENV_ID``, "pd" mode) |
+| task | environment (``DATASET_ENV_ID``, "pd" mode) |
 |---|---|
 | ``c11`` | the C11 target, starts drawn from the protocol's start region (``randomize_start=True``) |
 | ``random-targets`` | targets drawn per episode beyond the wall (``randomize_target=True``) |
@@ -48,14 +48,16 @@ from scara_gym.benchmark.episodes import run_episodes
 from scara_gym.benchmark.protocol import evaluate, tuning
 from scara_gym.envs.task import REWARD_TERMS
 from scara_gym.model import checks
-from scara_gym.registration import TRAINING_ENV_ID
 
 CONTROL_MODE = "pd"
 TASKS = {
     "c11": {"randomize_start": True},
     "random-targets": {"randomize_target": True},
 }
-"""task -> the environment arguments of its datasets (over TRAINING_ENV_ID's, "pd" mode)"""
+"""task -> the environment arguments of its datasets (over DATASET_ENV_ID's, "pd" mode)"""
+DATASET_ENV_ID = "Scara-C11-v1"
+"""the id the -v0 datasets are built and replayed on (frozen with them; a build on the protocol's id
+is a new dataset version, -v1, with its own expert)"""
 TASK_CONDITIONS = {"c11": "c11-starts", "random-targets": "random-targets"}
 """task -> the protocol condition whose tuning set picks its expert"""
 TIERS = ("expert", "medium", "random", "medium-replay", "mixed")
@@ -71,7 +73,7 @@ MEDIUM_STEPS = 300_000
 CODE_PERMALINK = f"scara_gym {__version__}: agents/experiments/datasets.py"
 RUNS = Path("docs/results/runs")
 """the published runs the expert candidates come from"""
-_learned = "{runs}/" + TRAINING_ENV_ID + "/pd/{name}/seed{seed}"
+_learned = "{runs}/" + DATASET_ENV_ID + "/pd/{name}/seed{seed}"  # the published runs
 EXPERT_CANDIDATES = {
     "c11": ["shield:pd"] + [f"torchppo:{_learned.format(runs='{runs}', name='torch-ppo-residual-fast-starts', seed=s)}"
                             for s in range(5)],
@@ -122,7 +124,7 @@ def get_dataset(name: str) -> DatasetSpec:
 
 def make_env(task: str) -> gym.Env:
     """The environment of a task's datasets (what recover_environment() builds again)."""
-    return gym.make(TRAINING_ENV_ID, control_mode=CONTROL_MODE, **TASKS[task])
+    return gym.make(DATASET_ENV_ID, control_mode=CONTROL_MODE, **TASKS[task])
 
 
 class RandomActions:
@@ -277,7 +279,7 @@ def train_medium(task: str, folder: Path, seed: int = 0) -> tuple[Path, list]:
     from agents.algorithms.torch_ppo import Config, train
 
     recorder = rollout_recorder()
-    config = Config(**MEDIUM_FIELDS[task], env_id=TRAINING_ENV_ID, control_mode=CONTROL_MODE, seed=seed,
+    config = Config(**MEDIUM_FIELDS[task], env_id=DATASET_ENV_ID, control_mode=CONTROL_MODE, seed=seed,
                     total_timesteps=MEDIUM_STEPS, torch_threads=1, out=str(folder))
     train(config, overwrite=True, hooks=[recorder])
     return folder, recorder.episodes
@@ -313,7 +315,7 @@ def build(name: str, episodes: int | None = None, out: Path | None = None, runs:
     seeds = list(range(spec.seed, spec.seed + count))
     expert = expert or pick_expert(spec.task, runs)
     low, high = scores or reference_scores(spec.task, expert["policy"])
-    record: dict = {"package": "scara_gym", "version": __version__, "env_id": TRAINING_ENV_ID,
+    record: dict = {"package": "scara_gym", "version": __version__, "env_id": DATASET_ENV_ID,
                     "env_kwargs": {"control_mode": CONTROL_MODE, **TASKS[spec.task]}, "task": spec.task,
                     "tier": spec.tier, "first_seed": None if spec.tier == "medium-replay" else seeds[0],
                     "expert": expert}

@@ -26,9 +26,8 @@ from agents.policies import DecHeuristic, PDPolicy, mpc as mpc_module
 from agents.policies.mpc import MPCConfig, MPCPolicy, solve_time_summary
 from agents.policies.optimal import OptimalPolicy
 from scara_gym import __version__
-from scara_gym.benchmark.protocol import Condition, evaluate as evaluate_condition, get_condition
+from scara_gym.benchmark.protocol import ENV_ID, Condition, evaluate as evaluate_condition, get_condition
 from scara_gym.model import symbolic as symbolic_module
-from scara_gym.registration import ENV_ID, TRAINING_ENV_ID
 from scara_gym.wrappers import Shield
 
 SHIELD_KEY = b"scara_gym.wrappers.Shield with a committed backup, 3 steps at rest, a flushed line, defaults"
@@ -93,7 +92,7 @@ def evaluation_key(run_dir: Path, condition: Condition, mode: str, episodes: int
             digest.update(name.encode() + (Path(run_dir) / name).read_bytes())
     if shield:
         digest.update(SHIELD_KEY)
-    digest.update(json.dumps([dataclasses.asdict(condition), mode, condition.seeds(episodes), TRAINING_ENV_ID,
+    digest.update(json.dumps([dataclasses.asdict(condition), mode, condition.seeds(episodes), ENV_ID,
                               __version__], sort_keys=True, default=str).encode())
     return digest.hexdigest()[:32]
 
@@ -134,7 +133,7 @@ def cached_evaluation(cache: Path | None, prefix: str, sources, description, run
     digest = hashlib.sha256()
     for module in sources:
         digest.update(Path(module.__file__).read_bytes())
-    digest.update(json.dumps([description, TRAINING_ENV_ID, __version__], sort_keys=True, default=str).encode())
+    digest.update(json.dumps([description, ENV_ID, __version__], sort_keys=True, default=str).encode())
     return _kept(Path(cache) / f"{prefix}-{digest.hexdigest()[:32]}.npz", run)
 
 
@@ -205,15 +204,25 @@ def learned_policy(env, run_dir: Path, shield: bool = False):
     return Shield(env, policy) if shield else policy
 
 
-def learned_runs(runs_root: Path, env_id: str = TRAINING_ENV_ID) -> dict[tuple[str, str], list[Path]]:
-    """(algorithm, control mode) -> finished run folders, seed order."""
-    groups: dict[tuple[str, str], list[Path]] = {}
-    for config in sorted(Path(runs_root).glob(f"{env_id}/*/*/seed*/config.json")):
+def learned_runs(runs_root: Path) -> dict[tuple[str, str], list[Path]]:
+    """(algorithm, control mode) -> finished run folders, seed order, under
+    ``RUNS/TRAINED_ON/MODE/NAME/seedN``. Every run is scored on the protocol's id whatever it was
+    trained on (the runs published before 0.4.0 were trained on Scara-C11-v1, the same physics
+    within v1's accuracy); where a run name has runs trained on several ids, those trained on the
+    protocol's id are taken, and with none of them the choice is refused."""
+    by_id: dict[tuple[str, str], dict[str, list[Path]]] = {}
+    for config in sorted(Path(runs_root).glob("*/*/*/seed*/config.json")):
         run = config.parent
         if is_finished(run):  # SB3's model.zip, or the torch PPO's model.pt
-            groups.setdefault((run.parent.name, run.parent.parent.name), []).append(run)
-    for key in groups:
-        groups[key].sort(key=lambda p: int(p.name.removeprefix("seed")))
+            trained_on = run.parent.parent.parent.name
+            by_id.setdefault((run.parent.name, run.parent.parent.name), {}).setdefault(trained_on, []).append(run)
+    groups = {}
+    for key, runs in by_id.items():
+        if len(runs) > 1 and ENV_ID not in runs:
+            raise ValueError(f"{runs_root}: the runs of {key[0]} ({key[1]}) were trained on {sorted(runs)}; keep "
+                             f"one id's, or train them on {ENV_ID}")
+        groups[key] = sorted(runs.get(ENV_ID) or next(iter(runs.values())),
+                             key=lambda p: int(p.name.removeprefix("seed")))
     return groups
 
 

@@ -35,7 +35,7 @@ from agents.files import (
     write_digests,
     write_json,
 )
-from scara_gym.registration import TRAINING_ENV_ID
+from scara_gym.benchmark.protocol import ENV_ID
 
 
 def run_dir(runs: Path, env_id: str, control_mode: str, name: str, seed: int) -> Path:
@@ -76,7 +76,7 @@ def publish(run: Path, dest: Path) -> Path:
     return dest
 
 
-def hyperparams_of(name: str, env_id: str = TRAINING_ENV_ID, control_mode: str = "pd") -> dict:
+def hyperparams_of(name: str, env_id: str = ENV_ID, control_mode: str = "pd") -> dict:
     """What a run of the registered ``name`` trains with: its YAML block (SB3), or every field of
     the torch PPO Config it gets but the run's identity (env, mode, seed, folder)."""
     run = spec(name)
@@ -90,7 +90,7 @@ def hyperparams_of(name: str, env_id: str = TRAINING_ENV_ID, control_mode: str =
     return fields
 
 
-def train_run(name: str, out: Path, seed: int, env_id: str = TRAINING_ENV_ID, control_mode: str = "pd",
+def train_run(name: str, out: Path, seed: int, env_id: str = ENV_ID, control_mode: str = "pd",
               total_timesteps: int | None = None, hyperparams: dict | None = None,
               command: str | None = None, randomize_target: bool = False, resume: bool = False,
               overwrite: bool = False) -> Path:
@@ -152,7 +152,7 @@ def _train_torch_ppo(run: RunSpec, out: Path, seed: int, env_id: str, control_mo
     return out
 
 
-def campaign(names: list[str], seeds: list[int], runs: Path, env_id: str = TRAINING_ENV_ID,
+def campaign(names: list[str], seeds: list[int], runs: Path, env_id: str = ENV_ID,
              control_mode: str = "pd", total_timesteps: int | None = None, shard: tuple[int, int] = (0, 1),
              publish_to: Path | None = None) -> list[Path]:
     """Every (seed, name) of the plan, or every ``shard[1]``-th from the ``shard[0]``-th: trained

@@ -31,8 +31,8 @@ import numpy as np
 
 from agents.policies.base import SetpointPolicy
 from scara_gym.benchmark.episodes import run_episode
+from scara_gym.benchmark.protocol import ENV_ID
 from scara_gym.envs import OBSERVATION_LAYOUT
-from scara_gym.registration import ENV_ID
 from scara_gym.wrappers.shield import hold_and_climb
 
 Q, RATES, TARGET_ERROR = (OBSERVATION_LAYOUT[name] for name in ("q", "rate", "target_error"))

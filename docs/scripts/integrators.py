@@ -10,7 +10,6 @@ log, 2026-12-02). Counts, not times: the figures do not depend on the machine's 
    transients), against DOP853 at rtol 1e-13.
 """
 
-import warnings
 
 import gymnasium as gym
 import numpy as np
@@ -21,7 +20,6 @@ import scara_gym  # noqa: F401  (registers the ids)
 from scara_gym.model.dynamics import derivative
 from scara_gym.model.integrator import RK_A, RK_B, RK_C, RK_E
 
-warnings.filterwarnings("ignore", message=".*out of date", category=DeprecationWarning)
 CONTROL_DT = 0.01
 
 

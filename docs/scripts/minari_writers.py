@@ -8,14 +8,12 @@ differ from its reset info and carry reach_time only on success."""
 import os
 import tempfile
 import time
-import warnings
 
 import minari
 import numpy as np
 
 from agents.experiments import datasets as D
 
-warnings.filterwarnings("ignore")
 
 def collector(n, root):
     os.environ["MINARI_DATASETS_PATH"] = root

@@ -10,7 +10,6 @@ rtol 1e-10 run, at v2's rtol 1e-7 / atol 1e-9; then the compiled step's time per
 """
 
 import sys
-import warnings
 
 from scara_gym.benchmark.accuracy import TARGETS, run, summary
 from scara_gym.benchmark.bench import _compiled_run
@@ -32,7 +31,6 @@ def compiled_us(mode: str, **kwargs) -> float:
 
 
 def main(seeds: int = 6) -> None:
-    warnings.simplefilter("ignore", DeprecationWarning)
     for weights in CANDIDATES:
         result = summary([row for seed in range(seeds) for row in run(200, seed, 1e-7, 1e-9, True, weights)])
         text = " ".join(f"{name} {result[name]:.1e} ({len(result['over_target'][name])} over)" for name in TARGETS)

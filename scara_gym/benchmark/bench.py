@@ -87,7 +87,6 @@ def _interleaved_best(measures: dict, rounds: int) -> dict:
 
 
 def bench_single(steps: int, rounds: int = 5) -> list[tuple[str, float]]:
-    import warnings
 
     import gymnasium as gym
 
@@ -101,9 +100,7 @@ def bench_single(steps: int, rounds: int = 5) -> list[tuple[str, float]]:
         candidates.append(("Reacher-v5 (MuJoCo)", "Reacher-v5", {}))
     except ImportError:
         pass
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", DeprecationWarning)  # v0 is out of date, measured on purpose
-        envs = {label: gym.make(env_id, **kwargs) for label, env_id, kwargs in candidates}
+    envs = {label: gym.make(gym.spec(env_id), **kwargs) for label, env_id, kwargs in candidates}
     per_round = max(1, steps // rounds)
     best = _interleaved_best({label: lambda env=env: _steps_per_second(env, per_round)
                               for label, env in envs.items()}, rounds)
@@ -123,7 +120,6 @@ def _vector_steps_per_second(venv, steps: int) -> float:
 
 def bench_vector(sizes, steps: int, modes=("voltage", "pd"), env_ids=None) -> list[tuple[str, str, int, float, float]]:
     """(env id, control mode, N, robot-steps/s, CartPole-v1's steps/s) per size, mode and id."""
-    import warnings
 
     import gymnasium as gym
 
@@ -135,10 +131,8 @@ def bench_vector(sizes, steps: int, modes=("voltage", "pd"), env_ids=None) -> li
             gym.make_vec("CartPole-v1", num_envs=n, vectorization_mode="vector_entry_point"), steps)
         for env_id in env_ids or scara_gym.ENV_VERSIONS:
             for mode in modes:
-                with warnings.catch_warnings():
-                    warnings.simplefilter("ignore", DeprecationWarning)  # v0 is out of date
-                    venv = gym.make_vec(env_id, num_envs=n, vectorization_mode="vector_entry_point",
-                                        control_mode=mode, collision="penalty")
+                venv = gym.make_vec(gym.spec(env_id), num_envs=n, vectorization_mode="vector_entry_point",
+                                    control_mode=mode, collision="penalty")
                 rows.append((env_id, mode, n, _vector_steps_per_second(venv, steps), cartpole))
     return rows
 
@@ -169,7 +163,6 @@ def bench_cost(env_ids=None, steps: int = 1000, control_mode: str = "pd", rounds
     (Runge-Kutta stages' arithmetic, error control, reward and observation). Rows: id,
     steps_per_second, total and COST_PARTS [us per step], rhs_per_step, steps_per_step
     (integration steps, rejected ones included)."""
-    import warnings
 
     import gymnasium as gym
 
@@ -178,9 +171,7 @@ def bench_cost(env_ids=None, steps: int = 1000, control_mode: str = "pd", rounds
     from scara_gym.model.integrator import T_LOCATE, T_SEARCH, rhs_cycles
 
     env_ids = tuple(env_ids or scara_gym.ENV_VERSIONS)
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", DeprecationWarning)  # older ids, measured on purpose
-        envs = {env_id: gym.make(env_id, control_mode=control_mode) for env_id in env_ids}
+    envs = {env_id: gym.make(gym.spec(env_id), control_mode=control_mode) for env_id in env_ids}
     rates = _interleaved_best({env_id: lambda env=env: _steps_per_second(env, steps)
                                for env_id, env in envs.items()}, rounds)
     seconds_per_cycle = _seconds_per_cycle()
@@ -458,14 +449,9 @@ def bench_warp_bound(control_mode: str = "voltage", n: int = 4096, steps: int = 
 
 
 def main(quick: bool = False, stream=None, gpu_only: bool = False) -> str:
-    import warnings
-
-    with warnings.catch_warnings():  # v0 and v1 are measured on purpose, beside v2
-        warnings.filterwarnings("ignore", message=r".*Scara-C11-v[01] is out of date", category=DeprecationWarning)
-        return _main(quick, stream, gpu_only)
-
-
-def _main(quick: bool, stream, gpu_only: bool) -> str:
+    """The bench's report (printed to ``stream`` as it is measured). The older ids are measured on
+    purpose beside the latest: the bench builds them from their specs (``gym.make(gym.spec(id))``),
+    which Gymnasium does not call out of date."""
     stream = sys.stdout if stream is None else stream  # at call time: a stream bound at import can be stale
     if gpu_only:
         return gpu_section(quick, stream)

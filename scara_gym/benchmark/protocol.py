@@ -21,7 +21,8 @@ the datasets and a user's own agent are scored.
 | ``delay-1`` | the start, with one control step of actuation delay (``action_delay=1``) |
 | ``rate-limit-20`` | the start, with the action slew-limited to 20 units/s (``action_rate_limit=20``) |
 
-Everything else is the C11 task of the id (``TRAINING_ENV_ID`` unless given). Seeds: every
+Everything else is the C11 task of the protocol's one id, ``ENV_ID`` (the latest id, unless
+given). Seeds: every
 condition draws from its own band of 10^7 seeds from 10^9 on (``Condition.seed``); the
 tuning set (:func:`tuning`) from 10^8 on; training, by the agents' convention, below 10^8
 (``TRAINING_SEED_LIMIT``): no seed that tunes or trains anything is an evaluation seed.
@@ -43,8 +44,11 @@ from scara_gym.envs.randomization import leaf_value
 from scara_gym.envs.task import START_REGION, draw_start
 from scara_gym.model import checks
 from scara_gym.model.params import DEFAULT_PARAMS
-from scara_gym.registration import TRAINING_ENV_ID
+from scara_gym.registration import LATEST_ENV_ID
 
+ENV_ID = LATEST_ENV_ID
+"""the id every condition runs on: evaluation, comparison, curves, sweeps, tuning, the datasets and the
+evaluation cache read it (a result names it)"""
 TRAINING_SEED_LIMIT = 10**8
 """training (run seeds and every reset seed a trainer uses) stays below this"""
 TUNING_SEED = 10**8
@@ -86,7 +90,7 @@ class Condition:
         return not (self.random_starts or kwargs.get("randomize_target") or kwargs.get("randomize_params")
                     or kwargs.get("sensor_noise") or kwargs.get("observation_noise"))
 
-    def make_env(self, control_mode: str = "pd", env_id: str = TRAINING_ENV_ID, **kwargs) -> gym.Env:
+    def make_env(self, control_mode: str = "pd", env_id: str = ENV_ID, **kwargs) -> gym.Env:
         """The condition's environment; kwargs: further arguments (e.g. a run's goal_tolerance)."""
         clash = sorted(set(kwargs) & (set(self.env_kwargs) | {"params", "control_mode"}))
         if clash:
@@ -210,7 +214,7 @@ def draws_nothing(env) -> bool:
 
 
 def evaluate(condition: Condition | str, policy_factory: Callable, control_mode: str = "pd",
-             episodes: int | None = None, env_id: str = TRAINING_ENV_ID, record: int = 1, env_kwargs=None) -> dict:
+             episodes: int | None = None, env_id: str = ENV_ID, record: int = 1, env_kwargs=None) -> dict:
     """A policy's episodes in a condition of the protocol, on the condition's evaluation seeds.
 
     A deterministic condition runs a deterministic policy's episode once per distinct outcome

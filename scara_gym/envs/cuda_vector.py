@@ -107,6 +107,9 @@ class ScaraCudaVectorEnv(VectorEnv):
         num_envs = checks.integer("num_envs", num_envs, 1, 2**24)
         self.max_episode_steps = checks.integer("max_episode_steps", max_episode_steps, 1, 2**62)
         autoreset_mode = check_autoreset_mode(autoreset_mode)
+        if autoreset_mode == AutoresetMode.DISABLED:  # the kernels reset ended robots themselves
+            raise ValueError("autoreset_mode must be 'NextStep' or 'SameStep' on the CUDA env ('Disabled' with "
+                             "reset_mask is the CPU vector env's), got 'Disabled'")
         self.plan_depth = checks.integer("plan_depth", plan_depth, 2, 1024)
         self.threads_per_block = checks.integer("threads_per_block", threads_per_block, 1, 1024)
         if kwargs.get("render_mode") is not None:

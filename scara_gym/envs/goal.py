@@ -146,9 +146,9 @@ def _goal_spaces(task) -> spaces.Dict:
 
 
 class ScaraGoalEnv(_GoalAPI, ScaraEnv):
-    """Scara-C11-Goal-v0: reach a goal configuration fast without hitting the wall (goal API).
+    """Scara-C11-Goal-v1: reach a goal configuration fast without hitting the wall (goal API).
 
-    The C11 robot, wall and physics of Scara-C11-v1 with the Gymnasium-Robotics goal
+    The C11 robot, wall and physics of Scara-C11-v2 with the Gymnasium-Robotics goal
     interface: the goal is the joint target q^ (drawn per episode by default), the achieved
     goal is q, and reward, success and episode end are functions of (achieved_goal,
     desired_goal, info) so that hindsight experience replay can relabel goals
@@ -156,7 +156,7 @@ class ScaraGoalEnv(_GoalAPI, ScaraEnv):
 
     ## Action space
 
-    ``Box(-1, 1, (3,), float32)``, as Scara-C11-v1: in "pd" mode (the default) a PD
+    ``Box(-1, 1, (3,), float32)``, as Scara-C11-v2: in "pd" mode (the default) a PD
     set-point (q^1 = a0 * pi rad, q^2 = a1 * pi rad, q^3 = 0.2 + 0.2 a2 m), in "voltage"
     mode armature voltages a_i * limit_i.
 
@@ -231,8 +231,8 @@ class ScaraGoalEnv(_GoalAPI, ScaraEnv):
     - control_dt (0.01): control step [s].
     - time_limit (3.0): horizon of the time_left feature [s].
     - params (None): a ScaraParams or dotted-path overrides, as ScaraEnv.
-    - rtol (1e-06): relative integration tolerance, as ScaraEnv.
-    - atol (1e-08): absolute integration tolerance, as ScaraEnv.
+    - rtol (1e-07): relative integration tolerance, as ScaraEnv.
+    - atol (1e-09): absolute integration tolerance, as ScaraEnv.
     - exact_switches (True): locate every mode switch inside the integration steps.
     - randomize_params (False): parameters drawn per episode, as ScaraEnv.
     - observation_noise (None): sim-to-real noise on "observation", as ScaraEnv.
@@ -244,19 +244,22 @@ class ScaraGoalEnv(_GoalAPI, ScaraEnv):
 
     ## Version history
 
+    - v1: the goal API on the latest id's integration (Scara-C11-v2: ``exact_switches=True``,
+      ``rtol=1e-7``, ``atol=1e-9``), goals drawn per episode (``randomize_target=True``); the
+      class defaults.
     - v0: first release: the goal API on Scara-C11-v1's physics (``exact_switches=True``,
       ``rtol=1e-6``, ``atol=1e-8``) with goals drawn per episode (``randomize_target=True``).
       Later added, without a change to what existing arguments do: ``reward_type="mixed"``,
       ``sensor_noise``, ``randomize_start``.
     """
 
-    env_id = "Scara-C11-Goal-v0"
+    env_id = "Scara-C11-Goal-v1"
     observation_names = GOAL_OBSERVATION_NAMES
 
     def __init__(self, reward_type: str = "sparse", collision_penalty: float = 50.0,
                  goal_tolerance: float | None = None, control_mode: str = "pd", obstacle: bool = True, collision: str = "terminate", target=None, start=None,
                  randomize_target: bool = True, control_dt: float = 0.01, time_limit: float = 3.0,
-                 params=None, rtol: float = 1e-6, atol: float = 1e-8, exact_switches: bool = True,
+                 params=None, rtol: float = 1e-7, atol: float = 1e-9, exact_switches: bool = True,
                  randomize_params=False, observation_noise: dict | None = None, action_delay: int = 0,
                  action_rate_limit: float | None = None, render_mode: str | None = None,
                  sensor_noise: dict | None = None, randomize_start=False) -> None:
@@ -302,7 +305,7 @@ def _with_goal_defaults(kwargs: dict) -> dict:
 
 
 class ScaraGoalVectorEnv(_GoalAPI, ScaraVectorEnv):
-    """N copies of Scara-C11-Goal-v0 stepped in parallel (ScaraVectorEnv's arguments plus
+    """N copies of Scara-C11-Goal-v1 stepped in parallel (ScaraVectorEnv's arguments plus
     reward_type, collision_penalty and goal_tolerance). Observations are a dict of batched arrays; with
     ``autoreset_mode="SameStep"`` ``info["final_obs"]`` is such a dict too (zero for the
     robots that did not end). Robot i is the single env seeded seed + i."""

@@ -148,16 +148,17 @@ class ScaraEnv(gym.Env):
       max_episode_steps = time_limit / control_dt when changing either.
     - params (None): a ScaraParams, or a dict of dotted-path overrides of the C11
       defaults, e.g. {"arm.load_mass": 1.0, "obstacle.height": 0.2}.
-    - rtol (1e-05): relative integration tolerance inside the step (scipy's meaning),
-      in [1e-14, 1e-2]; Scara-C11-v1 registers 1e-6, Scara-C11-v2 1e-7.
-    - atol (1e-06): absolute integration tolerance inside the step, in [1e-16, 1e-2];
-      Scara-C11-v1 registers 1e-8, Scara-C11-v2 1e-9. How close a tolerance stays to a
+    - rtol (1e-07): relative integration tolerance inside the step (scipy's meaning),
+      in [1e-14, 1e-2]; the default is the latest id's (Scara-C11-v2); Scara-C11-v0
+      registers 1e-5, Scara-C11-v1 1e-6.
+    - atol (1e-09): absolute integration tolerance inside the step, in [1e-16, 1e-2];
+      Scara-C11-v0 registers 1e-6, Scara-C11-v1 1e-8. How close a tolerance stays to a
       tight-tolerance run is measured by ``scara-c11 accuracy``.
-    - exact_switches (False): locate every mode switch inside the integration steps
+    - exact_switches (True): locate every mode switch inside the integration steps
       (a current limit or the PD law's saturation reached and left within one step is
-      found; the saturation is a located switch, not a kink); Scara-C11-v1 and -v2
-      register True. False is the first releases' integration (Scara-C11-v0), which sees switches at the
-      ends of integration steps only.
+      found; the saturation is a located switch, not a kink). False is the first
+      releases' integration (Scara-C11-v0), which sees switches at the ends of
+      integration steps only.
     - tolerance_weights (None): a dict from state groups ("q", "rate", "current",
       "energy") to a factor in [1e-3, 1e3] on rtol and atol for that group's
       components (the others 1), e.g. {"q": 0.03, "current": 30}; no id registers it
@@ -178,7 +179,8 @@ class ScaraEnv(gym.Env):
     - action_rate_limit (None): sim-to-real: the applied action moves towards the
       (delayed) given one by at most this many action units per second (the action spans
       [-1, 1]; e.g. 20 allows 0.2 per 0.01 s step), starting from the neutral action.
-    - render_mode (None): "rgb_array" (headless) or "human" (needs a display).
+    - render_mode (None): "rgb_array" (headless) or "human" (a window; without a display the
+      frames are drawn off-screen, with one warning at construction).
     - sensor_noise (None): sim-to-real: noisy sensors, {channel: standard deviation} over
       "q", "rate" and "current" (or entries "q1" ... "current3"), e.g. {"q": 1e-3, "rate":
       0.01, "current": 0.02}: the noise is added to the measured q, rates and currents and
@@ -193,7 +195,8 @@ class ScaraEnv(gym.Env):
     ## Version history
 
     The ids differ only in the integration arguments they register (``scara_gym.ENV_VERSIONS``);
-    the class defaults are v0's.
+    the class defaults are the latest id's (v2's): ``ScaraEnv()`` is ``gym.make("Scara-C11-v2")``
+    without the time limit. v0 and v1 stay registered and frozen for results made on them.
 
     - v2: v1's exact switches (``exact_switches=True``) at ``rtol=1e-7``, ``atol=1e-9``:
       within every accuracy target of ``scara-c11 accuracy``, including the currents just
@@ -208,7 +211,8 @@ class ScaraEnv(gym.Env):
 
     Later added to every id, without a change to what existing arguments do: ``sensor_noise``
     (noisy sensors with the derived entries computed from them; ``observation_noise`` keeps its
-    per-entry meaning) and ``randomize_start`` (starts drawn per episode).
+    per-entry meaning) and ``randomize_start`` (starts drawn per episode). In scara_gym 0.4.0 the
+    class defaults moved from v0's integration to v2's; no registered id changed.
     """
 
     metadata = {"render_modes": ["human", "rgb_array"], "render_fps": 100}
@@ -218,7 +222,7 @@ class ScaraEnv(gym.Env):
                  target=None, start=None, randomize_target: bool = False,
                  reward_weights: RewardWeights | dict | None = None, control_dt: float = 0.01,
                  time_limit: float = 3.0, params: ScaraParams | dict | None = None,
-                 rtol: float = 1e-5, atol: float = 1e-6, exact_switches: bool = False,
+                 rtol: float = 1e-7, atol: float = 1e-9, exact_switches: bool = True,
                  randomize_params=False, observation_noise: dict | None = None, action_delay: int = 0,
                  action_rate_limit: float | None = None, render_mode: str | None = None,
                  sensor_noise: dict | None = None, randomize_start=False,
@@ -243,9 +247,13 @@ class ScaraEnv(gym.Env):
         self._needs_reset = True
         self._renderer = None
         self._trace = []
+        self._window = False
         if render_mode == "human":
-            from scara_gym.envs.rendering import require_display
-            require_display()
+            from scara_gym.envs.rendering import has_display
+            self._window = has_display()
+            if not self._window:  # a headless machine (CI, a cluster node, Gymnasium's check_env there)
+                gym.logger.warn("render_mode='human' without a display (DISPLAY or WAYLAND_DISPLAY is not set): "
+                                "frames are drawn off-screen and shown nowhere; use render_mode='rgb_array' to get them")
 
     # -- the task's configuration, read-only ---------------------------------------------
     params = property(lambda self: self.task.params)
@@ -328,7 +336,7 @@ class ScaraEnv(gym.Env):
             return None
         if self._renderer is None:
             from scara_gym.envs.rendering import ScaraRenderer
-            self._renderer = ScaraRenderer(self.params, human=self.render_mode == "human")
+            self._renderer = ScaraRenderer(self.params, human=self._window)
         self._renderer.set_params(self.episode_params)  # a randomized wall is drawn where it is
         frame = self._renderer.draw(
             q=self._robot["x"][R.Q:R.Q + 3], target=self.target, trace=self._trace, obstacle=self.obstacle,

@@ -218,7 +218,7 @@ class ScaraTask:
                  target=None, start=None, randomize_target: bool = False,
                  reward_weights: RewardWeights | dict | None = None, control_dt: float = 0.01,
                  time_limit: float = 3.0, params: ScaraParams | dict | None = None,
-                 rtol: float = 1e-5, atol: float = 1e-6, exact_switches: bool = False,
+                 rtol: float = 1e-7, atol: float = 1e-9, exact_switches: bool = True,
                  num_robots: int = 1, randomize_params=False, observation_noise: dict | None = None,
                  action_delay: int = 0, action_rate_limit: float | None = None, sensor_noise: dict | None = None,
                  randomize_start=False, tolerance_weights: dict | None = None) -> None:

@@ -11,9 +11,9 @@ from __future__ import annotations
 import inspect
 import re
 
-from scara_gym import ENV_VARIANTS
 from scara_gym.envs.scara_env import ScaraEnv
 from scara_gym.envs.task import ScaraTask
+from scara_gym.registration import ENTRY_POINTS, ENV_VARIANTS
 
 
 def _observation_rows(body: str, defaults: dict) -> str:
@@ -62,38 +62,44 @@ class _Variant(ScaraEnv):
 
 
 class ScaraRandomPhysicsEnv(_Variant, summary="""
-    Scara-C11-RandomPhysics-v0: the C11 task with the robot's physics drawn per episode.
+    Scara-C11-RandomPhysics-v1: the C11 task with the robot's physics drawn per episode.
 
-    The point-to-point move of Scara-C11-v1 (same wall, target, spaces, reward and
+    The point-to-point move of Scara-C11-v2 (same wall, target, spaces, reward and
     integration) with the load mass, the link masses and each motor's resistance, torque
     constant and current limit drawn uniformly per reset from the "physics" preset of
     ``scara_gym.envs.randomization`` (see the starting state below), the drawn values in the
     reset info. A policy must reach the target fast on robots it has not seen: the setting
     of domain randomization for sim-to-real transfer.
     """, history="""
+    - v1: ``randomize_params="physics"`` on the latest id's integration (Scara-C11-v2:
+      ``exact_switches=True``, ``rtol=1e-7``, ``atol=1e-9``); the class defaults.
     - v0: first release: ``randomize_params="physics"`` on Scara-C11-v1's physics,
       ``exact_switches=True``, ``rtol=1e-6``, ``atol=1e-8``.
     """):
-    env_id = "Scara-C11-RandomPhysics-v0"
+    env_id = "Scara-C11-RandomPhysics-v1"
 
 
 class ScaraRandomWallEnv(_Variant, summary="""
-    Scara-C11-RandomWall-v0: the C11 task with the wall's position and height drawn per episode.
+    Scara-C11-RandomWall-v1: the C11 task with the wall's position and height drawn per episode.
 
-    The point-to-point move of Scara-C11-v1 (same robot, target, spaces, reward and
+    The point-to-point move of Scara-C11-v2 (same robot, target, spaces, reward and
     integration) with the wall's plane x_obs drawn from 0.35 +- 0.04 m and its height h_obs
     from 0.15 +- 0.03 m per reset (the "wall" preset of ``scara_gym.envs.randomization``),
     the drawn values in the reset info and the wall features of the observation measured
     from the episode's wall. With the C11 target the task stays solvable: the target tip
     lies beyond the critical band and the target height above the wall for every draw.
     """, history="""
+    - v1: ``randomize_params="wall"`` on the latest id's integration (Scara-C11-v2:
+      ``exact_switches=True``, ``rtol=1e-7``, ``atol=1e-9``); the class defaults.
     - v0: first release: ``randomize_params="wall"`` on Scara-C11-v1's physics,
       ``exact_switches=True``, ``rtol=1e-6``, ``atol=1e-8``.
     """):
-    env_id = "Scara-C11-RandomWall-v0"
+    env_id = "Scara-C11-RandomWall-v1"
 
 
 from scara_gym.envs.goal import ScaraGoalEnv  # noqa: E402  (its card is its own: a Dict observation)
 
-VARIANT_CLASSES = {cls.env_id: cls for cls in (ScaraRandomPhysicsEnv, ScaraRandomWallEnv, ScaraGoalEnv)}
-"""Registered variant id -> its class (a test checks every id of ENV_VARIANTS has one)."""
+_CLASSES = {f"{cls.__module__}:{cls.__name__}": cls for cls in (ScaraRandomPhysicsEnv, ScaraRandomWallEnv, ScaraGoalEnv)}
+VARIANT_CLASSES = {env_id: _CLASSES[ENTRY_POINTS[env_id]] for env_id in ENV_VARIANTS}
+"""Registered variant id -> its class, every version of a variant one class whose defaults are its
+latest version's (a test checks every id of ENV_VARIANTS has one)."""

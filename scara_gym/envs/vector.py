@@ -9,7 +9,10 @@ episode ends resets that robot and returns its first observation with reward 0,
 terminated and truncated False. ``"SameStep"``: the ending step already returns the
 reset observation; the final observation and info are in ``info["final_obs"]`` and
 ``info["final_info"]`` (masked by ``info["_final_obs"]``), as the stable-baselines3
-adapter needs.
+adapter needs. ``"Disabled"``: no robot is reset by ``step``; ``reset(options={"reset_mask":
+mask})`` resets the robots where ``mask`` is True (each as the single env reset with its seed,
+bit for bit) and leaves the others as they are, and stepping a robot whose episode has ended
+without resetting it is an error that names it (as the single env's ``step`` after the end).
 """
 
 from __future__ import annotations
@@ -28,21 +31,34 @@ from scara_gym.model import checks
 
 
 def check_autoreset_mode(autoreset_mode) -> AutoresetMode:
-    """"NextStep" or "SameStep" (Gymnasium's names or enum members); "Disabled" is refused."""
+    """"NextStep", "SameStep" or "Disabled" (Gymnasium's names or enum members)."""
     try:
-        autoreset_mode = AutoresetMode(autoreset_mode)
+        return AutoresetMode(autoreset_mode)
     except ValueError:
-        raise ValueError(f"autoreset_mode must be 'NextStep' or 'SameStep', got {autoreset_mode!r}") from None
-    if autoreset_mode == AutoresetMode.DISABLED:
-        raise ValueError("autoreset_mode must be 'NextStep' or 'SameStep', got 'Disabled'")
-    return autoreset_mode
+        raise ValueError(f"autoreset_mode must be 'NextStep', 'SameStep' or 'Disabled', got {autoreset_mode!r}") \
+            from None
+
+
+def check_reset_mask(options: dict, num_envs: int, autoreset_mode: AutoresetMode) -> np.ndarray | None:
+    """The reset options' "reset_mask" (taken out of ``options``): None, or a bool array of
+    shape (num_envs,) with a True, in "Disabled" autoreset mode only (Gymnasium's rules)."""
+    if "reset_mask" not in options:
+        return None
+    mask = options.pop("reset_mask")
+    if autoreset_mode != AutoresetMode.DISABLED:
+        raise ValueError(f"options['reset_mask'] needs autoreset_mode='Disabled' (this env's is "
+                         f"{autoreset_mode.value!r}: it resets ended robots itself)")
+    if not isinstance(mask, np.ndarray) or mask.dtype != np.bool_ or mask.shape != (num_envs,) or not mask.any():
+        raise ValueError(f"options['reset_mask'] must be a numpy bool array of shape ({num_envs},) with at least "
+                         f"one True, got {mask!r}")
+    return mask.copy()
 
 
 class ScaraVectorEnv(VectorEnv):
     """N copies of the env of a registered id (the same arguments as ScaraEnv), stepped in parallel.
 
     Extra arguments: num_envs, max_episode_steps (300: the registered time limit),
-    autoreset_mode ("NextStep" or "SameStep"), num_threads (numba threads of the parallel
+    autoreset_mode ("NextStep", "SameStep" or "Disabled"), num_threads (numba threads of the parallel
     step; None: all, numba's NUMBA_NUM_THREADS, which defaults to the number of cores; give 1
     where another library, e.g. torch in training, takes the cores between steps). Rendering is not supported in the
     vector environment (render_mode must be None). info holds arrays over the robots:
@@ -100,21 +116,31 @@ class ScaraVectorEnv(VectorEnv):
     # -- episodes ----------------------------------------------------------------------
     def reset(self, *, seed: int | list[int | None] | None = None, options: dict | None = None):
         seeds = vector_seeds(seed, self.num_envs)
-        options = checks.mapping("reset options", options, RESET_OPTIONS)
-        # every robot's start, target and parameters are checked before any robot changes
-        rngs = [self._rngs[i] if s is None else seeding.np_random(s)[0] for i, s in enumerate(seeds)]
-        plans = [self.task.episode_start(rng, options) for rng in rngs]
-        self._rngs = rngs
-        for i, plan in enumerate(plans):
+        options = checks.mapping("reset options", options, (*RESET_OPTIONS, "reset_mask"))
+        mask = check_reset_mask(options, self.num_envs, self.autoreset_mode)
+        if mask is not None and not self._started:
+            raise RuntimeError("options['reset_mask']: call reset() without a mask first (no robot has begun)")
+        robots = range(self.num_envs) if mask is None else np.flatnonzero(mask)
+        # every reset robot's start, target and parameters are checked before any robot changes
+        rngs = {i: self._rngs[i] if seeds[i] is None else seeding.np_random(seeds[i])[0] for i in robots}
+        plans = {i: self.task.episode_start(rng, options) for i, rng in rngs.items()}
+        for i, plan in plans.items():
+            self._rngs[i] = rngs[i]
             self.task.begin_episode(i, plan)
-        self._prev_done[:] = False
+        self._prev_done[list(robots)] = False
         self._started = True
         info = {"target": self.targets}
-        varied = sorted({path for plan in plans for path in plan.varied})
+        varied = sorted({path for plan in plans.values() for path in plan.varied})
         if varied:  # the drawn or overridden parameters, one array per path over the robots
-            info["params"] = {path: np.array([plan.varied.get(path, np.nan) for plan in plans])
-                              for path in varied}
-        return self._agent_view(self.task.observations(self._rngs)), info
+            info["params"] = {path: np.array([plans[i].varied.get(path, np.nan) if i in plans else np.nan
+                                              for i in range(self.num_envs)]) for path in varied}
+        if mask is None:
+            self._obs = self.task.observations(self._rngs)
+        else:  # the others keep their last observation: no noise is drawn for them
+            info["_target"] = mask
+            for i in robots:
+                self._obs[i] = self.task.observation(i, self._rngs[i])
+        return self._agent_view(self._obs.copy()), info
 
     # -- stepping ----------------------------------------------------------------------
     def step(self, actions):
@@ -122,6 +148,9 @@ class ScaraVectorEnv(VectorEnv):
             raise RuntimeError("call reset() before step()")
         task = self.task
         a = check_actions(actions, (self.num_envs, 3))
+        if self.autoreset_mode == AutoresetMode.DISABLED and self._prev_done.any():
+            raise RuntimeError(f"robots {np.flatnonzero(self._prev_done).tolist()} have ended their episodes: reset "
+                               "them (reset(options={'reset_mask': ...})) before the next step")
         resetting = self._prev_done.copy() if self.autoreset_mode == AutoresetMode.NEXT_STEP \
             else np.zeros(self.num_envs, dtype=bool)
         self._reset_robots(np.flatnonzero(resetting))
@@ -145,7 +174,8 @@ class ScaraVectorEnv(VectorEnv):
             for i in np.flatnonzero(done):
                 obs[i] = task.observation(i, self._rngs[i])
         self._prev_done = done
-        return self._agent_view(obs), reward, terminated, truncated, info
+        self._obs = obs
+        return self._agent_view(obs.copy()), reward, terminated, truncated, info
 
     def _reset_robots(self, indices) -> None:
         """Autoreset every robot of ``indices`` or none: each next episode is drawn on a copy of

@@ -17,14 +17,22 @@ import numpy as np
 from stable_baselines3.common.vec_env.base_vec_env import VecEnv
 
 from scara_gym.envs.vector import ScaraVectorEnv
+from scara_gym.model import checks
+from scara_gym.registration import ENV_KWARGS, GOAL_ENV_IDS, LATEST_ENV_ID
 
 
 class SB3VecEnv(VecEnv):
-    """``SB3VecEnv(num_envs=8, control_mode="pd", ...)``: arguments as ScaraVectorEnv."""
+    """``SB3VecEnv(num_envs=8, env_id="Scara-C11-v2", control_mode="pd", ...)``: the robots of a
+    registered id (the arguments it registers; default the latest id), further arguments as
+    ScaraVectorEnv's over them."""
 
-    def __init__(self, num_envs: int = 8, **kwargs: Any) -> None:
-        kwargs["autoreset_mode"] = "SameStep"
-        self.venv = ScaraVectorEnv(num_envs=num_envs, **kwargs)
+    def __init__(self, num_envs: int = 8, env_id: str = LATEST_ENV_ID, **kwargs: Any) -> None:
+        checks.choice("env_id", env_id, tuple(i for i in ENV_KWARGS if i not in GOAL_ENV_IDS))
+        if "autoreset_mode" in kwargs:
+            raise ValueError("autoreset_mode: SB3VecEnv sets 'SameStep' itself (SB3 reads the final observation "
+                             "in the step that ends an episode)")
+        self.env_id = env_id
+        self.venv = ScaraVectorEnv(num_envs=num_envs, autoreset_mode="SameStep", **{**ENV_KWARGS[env_id], **kwargs})
         super().__init__(num_envs, self.venv.single_observation_space, self.venv.single_action_space)
         self._actions: np.ndarray | None = None
         self._returns = np.zeros(num_envs)

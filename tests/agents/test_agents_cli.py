@@ -7,6 +7,7 @@ import sys
 import pytest
 
 from agents.cli import build_parser, run
+from scara_gym import LATEST_ENV_ID
 
 SUBCOMMANDS = ("evaluate", "train", "torch-ppo", "campaign", "compare", "curves", "sweep", "select", "optimal",
                "bench", "datasets")
@@ -48,7 +49,7 @@ def test_evaluate_runs_the_classical_policies(tmp_path, capsys):
 def test_train_campaign_and_compare_run_tiny(tmp_path):
     pytest.importorskip("rliable")
     runs = tmp_path / "runs"
-    out = runs / "Scara-C11-v1" / "pd" / "torch-ppo" / "seed0"
+    out = runs / LATEST_ENV_ID / "pd" / "torch-ppo" / "seed0"
     run(["train", "torch-ppo", "--out", str(out), "--total-timesteps", "16",
          "--set", "num_envs=2", "num_steps=8", "num_minibatches=1", "update_epochs=1", "reward_weights=time=20"])
     config = json.loads((out / "config.json").read_text())

@@ -5,6 +5,8 @@ import json
 import numpy as np
 import pytest
 
+from scara_gym import LATEST_ENV_ID
+
 pytest.importorskip("rliable")
 pytest.importorskip("stable_baselines3")
 from agents.algorithms.sb3 import hyperparams, training  # noqa: E402
@@ -55,23 +57,23 @@ def test_comparison_command_writes_every_policy(tmp_path):
     hyper = hyperparams.load_hyperparams("td3")
     hyper.update(n_envs=1, learning_starts=50, buffer_size=500, eval_freq=100, eval_episodes=1, snapshot_freq=100)
     for seed in (0, 1):
-        training.train("td3", runs / "Scara-C11-v1" / "pd" / "td3" / f"seed{seed}", seed=seed,
+        training.train("td3", runs / LATEST_ENV_ID / "pd" / "td3" / f"seed{seed}", seed=seed,
                        hyperparams=hyper, total_timesteps=200)
     from agents.algorithms.torch_ppo import Config, train as train_torch_ppo
     train_torch_ppo(Config(num_envs=2, num_steps=8, num_minibatches=1, update_epochs=1, total_timesteps=16, seed=3,
-                           out=str(runs / "Scara-C11-v1" / "pd" / "torch-ppo" / "seed3")))
+                           out=str(runs / LATEST_ENV_ID / "pd" / "torch-ppo" / "seed3")))
     # what is committed (docs/results/runs): the finished runs, model and history only
     published = tmp_path / "published"
     from agents.cli import run
     assert len(run(["campaign", "td3", "--seeds", "0", "1", "2", "--runs", str(runs),
                     "--publish", str(published)])) == 2  # seed 2 never ran
-    run_folders.publish(runs / "Scara-C11-v1" / "pd" / "torch-ppo" / "seed3",
-                      published / "Scara-C11-v1" / "pd" / "torch-ppo" / "seed3")
+    run_folders.publish(runs / LATEST_ENV_ID / "pd" / "torch-ppo" / "seed3",
+                      published / LATEST_ENV_ID / "pd" / "torch-ppo" / "seed3")
     files = {p.relative_to(published).as_posix() for p in published.rglob("*") if p.is_file()}
-    assert "Scara-C11-v1/pd/td3/seed1/eval/evaluations.npz" in files
+    assert f"{LATEST_ENV_ID}/pd/td3/seed1/eval/evaluations.npz" in files
     assert not any(part in ("tb", "snapshot", "checkpoints") for f in files for part in f.split("/")), files
     with pytest.raises(ValueError, match="not a finished run"):
-        run_folders.publish(runs / "Scara-C11-v1" / "pd" / "td3" / "seed2", tmp_path / "nowhere")
+        run_folders.publish(runs / LATEST_ENV_ID / "pd" / "td3" / "seed2", tmp_path / "nowhere")
     out = tmp_path / "results"
     entries, traces = comparison.compare(published, ["c11"], episodes=2, verbose=False, heuristics=HEURISTICS,
                                          shielded=("torch-ppo",))
@@ -108,8 +110,8 @@ def test_comparison_command_writes_every_policy(tmp_path):
     assert f"| optimal | {optimal['time_iqm']:.3f} s |\n" in table
     json.dumps(entries)  # the JSON other tools read
     import shutil  # a run folder of a registered pilot is left out unless pilots=True
-    shutil.copytree(published / "Scara-C11-v1" / "pd" / "torch-ppo",
-                    published / "Scara-C11-v1" / "pd" / "torch-ppo-residual-frugal")
+    shutil.copytree(published / LATEST_ENV_ID / "pd" / "torch-ppo",
+                    published / LATEST_ENV_ID / "pd" / "torch-ppo-residual-frugal")
     assert "pilot" in registry.RUNS["torch-ppo-residual-frugal"].tags
     kwargs = dict(episodes=1, verbose=False, heuristics=HEURISTICS, shielded=(), include_optimal=False,
                   robust_shield=False, include_mpc=False)
@@ -271,9 +273,9 @@ def test_conditions_compared_in_parallel_give_the_sequential_entries():
 
 def test_a_fine_tuned_variant_starts_from_its_base_run_and_counts_its_training_time(tmp_path):
     algo = "torch-ppo-residual-random-safe-fast"
-    out = run_folders.run_dir(tmp_path, "Scara-C11-v1", "pd", algo, 3)
+    out = run_folders.run_dir(tmp_path, LATEST_ENV_ID, "pd", algo, 3)
     run_folders.train_run(algo, out, seed=3, total_timesteps=2048)
-    base = run_folders.run_dir(tmp_path, "Scara-C11-v1", "pd", registry.RUNS[algo].base, 3)
+    base = run_folders.run_dir(tmp_path, LATEST_ENV_ID, "pd", registry.RUNS[algo].base, 3)
     assert run_folders.is_finished(base) and run_folders.is_finished(out)
     config, base_config = (json.loads((run / "config.json").read_text()) for run in (out, base))
     assert config["init_from"] == str(base) and base_config["seed"] == config["seed"] == 3

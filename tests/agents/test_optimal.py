@@ -9,6 +9,7 @@ import pytest
 import scara_gym  # noqa: F401
 from agents.policies import run_episode
 from agents.policies.optimal import SOLUTIONS, OptimalPolicy, cached_solution, reference_snapshots, replay, replaying
+from scara_gym import LATEST_ENV_ID
 from scara_gym.model.params import DEFAULT_PARAMS
 
 SPEC_BOUND = 1.2217  # s, the spec's minimum time under the environment's rules (continuous time)
@@ -55,7 +56,7 @@ def test_reference_snapshots_are_the_replayed_path():
     assert [s["episode_steps"] for s in snapshots] == list(range(1, len(snapshots) + 1))
     np.testing.assert_allclose([s["t"] for s in snapshots], 0.01 * np.arange(1, len(snapshots) + 1), atol=1e-12)
     # from the last snapshot, the last planned action reaches the target at the replay's instant
-    env = gym.make("Scara-C11-v1", control_mode="voltage")
+    env = gym.make(LATEST_ENV_ID, control_mode="voltage")  # the id the snapshots were taken on
     env.reset(seed=0)
     env.unwrapped.task.restore(0, snapshots[-1])
     _, _, terminated, _, info = env.step(actions[len(snapshots)])

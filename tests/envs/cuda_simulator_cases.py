@@ -270,3 +270,10 @@ def test_random_starts_with_a_delay_in_pd_mode_are_refused_on_the_device():
     with pytest.raises(ValueError, match="randomize_start with action_delay or action_rate_limit in 'pd' mode"):
         ScaraCudaVectorEnv(num_envs=2, randomize_start=True, action_delay=1)
     ScaraCudaVectorEnv(num_envs=2, randomize_start=True)  # without the line: the plans carry the starts
+
+
+def test_the_cuda_env_defaults_to_the_latest_integration_and_refuses_disabled_autoreset():
+    assert {name: getattr(ScaraCudaVectorEnv(num_envs=2).task, name) for name in scara_gym.LATEST_INTEGRATION} \
+        == scara_gym.LATEST_INTEGRATION
+    with pytest.raises(ValueError, match="'NextStep' or 'SameStep' on the CUDA env"):
+        ScaraCudaVectorEnv(num_envs=2, autoreset_mode="Disabled")

@@ -1,4 +1,4 @@
-"""Scara-C11-Goal-v0: the goal API (compute_reward and friends), its card, its vector env."""
+"""Scara-C11-Goal-v1: the goal API (compute_reward and friends), its card, its vector env."""
 
 import inspect
 import re
@@ -12,7 +12,7 @@ from gymnasium.utils.env_checker import check_env
 import scara_gym  # noqa: F401
 from scara_gym.envs.goal import GOAL_OBSERVATION_NAMES, ScaraGoalEnv
 
-GOAL = "Scara-C11-Goal-v0"
+GOAL = "Scara-C11-Goal-v1"
 
 
 def transitions(reward_type: str, count: int = 1000):

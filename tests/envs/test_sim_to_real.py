@@ -182,7 +182,7 @@ def test_envs_with_the_options_pass_the_checkers():
     kwargs = dict(observation_noise=NOISE, action_delay=2, action_rate_limit=10.0)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        check_env(gym.make("Scara-C11-RandomWall-v0", **kwargs).unwrapped, skip_render_check=True)
+        check_env(gym.make("Scara-C11-RandomWall-v1", **kwargs).unwrapped, skip_render_check=True)
         pytest.importorskip("stable_baselines3.common.env_checker").check_env(ScaraEnv(**kwargs), warn=True)
     assert [str(w.message) for w in caught] == []
 

@@ -199,3 +199,94 @@ def test_an_autoreset_that_cannot_start_a_robot_resets_none_and_names_it(mode, m
     monkeypatch.setattr(task, "episode_start", real)
     venv.step(actions)  # the same resets, drawn again from the same generators
     assert not np.array_equal(venv.targets, targets)
+
+
+@pytest.mark.parametrize("kwargs", [
+    dict(control_mode="pd", randomize_target=True),
+    dict(control_mode="pd", randomize_target=True, observation_noise={"q": 1e-3}, action_delay=1),
+])
+def test_disabled_autoreset_resets_exactly_the_masked_robots_as_single_envs(kwargs):
+    """With autoreset off, reset(options={"reset_mask": m}) resets the robots of m, each bit for
+    bit as the single env reset with the same seed, and leaves the other robots' episodes
+    (their state and noise draws) as they were."""
+    n, horizon = 4, 260
+    rng = np.random.default_rng(5)
+    # head for the target with noise: episodes end at different steps (success or collision)
+    actions = np.clip(rng.normal(0, 0.3, (horizon, n, 3)) + np.array([2 / np.pi, 2 / np.pi, 0.5]), -1, 1)
+    venv = gym.make_vec("Scara-C11-v2", num_envs=n, vectorization_mode="vector_entry_point",
+                        autoreset_mode="Disabled", **kwargs)
+    singles = [gym.make("Scara-C11-v2", **kwargs) for _ in range(n)]
+    seeds = iter(range(100, 10_000))
+    first = [next(seeds) for _ in range(n)]
+    obs, _ = venv.reset(seed=first)
+    for i, env in enumerate(singles):
+        assert np.array_equal(env.reset(seed=first[i])[0], obs[i])
+    resets = 0
+    for k in range(horizon):
+        obs, reward, terminated, truncated, info = venv.step(actions[k])
+        done = terminated | truncated
+        for i, env in enumerate(singles):
+            single = env.step(actions[k, i])
+            assert np.array_equal(single[0], obs[i]) and single[1:4] == (reward[i], terminated[i], truncated[i])
+        if done.any():
+            with pytest.raises(RuntimeError, match=rf"robots \[{', '.join(map(str, np.flatnonzero(done)))}\]"):
+                venv.step(actions[k])  # an ended robot is not stepped silently
+            seed = [next(seeds) if d else None for d in done]
+            before = obs.copy()
+            obs, info = venv.reset(seed=seed, options={"reset_mask": done})
+            resets += int(done.sum())
+            assert np.array_equal(info["_target"], done)
+            assert np.array_equal(obs[~done], before[~done])  # the others untouched
+            for i in np.flatnonzero(done):
+                assert np.array_equal(singles[i].reset(seed=seed[i])[0], obs[i])
+    assert resets >= 2
+
+
+def test_reset_mask_is_checked():
+    venv = ScaraVectorEnv(num_envs=2, autoreset_mode="Disabled")
+    with pytest.raises(RuntimeError, match="without a mask first"):
+        venv.reset(options={"reset_mask": np.array([True, False])})
+    venv.reset(seed=0)
+    for bad in (np.array([1, 0]), np.array([False, False]), np.array([True]), [True, False]):
+        with pytest.raises(ValueError, match=r"reset_mask'\] must be a numpy bool array of shape \(2,\)"):
+            venv.reset(options={"reset_mask": bad})
+    with pytest.raises(ValueError, match="needs autoreset_mode='Disabled'"):
+        ScaraVectorEnv(num_envs=2).reset(options={"reset_mask": np.array([True, False])})
+
+
+@pytest.mark.parametrize("autoreset_mode", ["NextStep", "SameStep", "Disabled"])
+def test_gymnasium_vector_wrappers_in_every_autoreset_mode(autoreset_mode):
+    from gymnasium.wrappers.vector import (
+        ClipAction,
+        DtypeObservation,
+        NormalizeObservation,
+        NormalizeReward,
+        RecordEpisodeStatistics,
+    )
+
+    venv = gym.make_vec("Scara-C11-v2", num_envs=3, vectorization_mode="vector_entry_point",
+                        autoreset_mode=autoreset_mode, control_mode="pd")
+    inner = ClipAction(venv)
+    # Gymnasium's own rules: NormalizeObservation takes NextStep only, its per-step observation
+    # transforms NextStep or Disabled, and neither SameStep
+    if autoreset_mode == "NextStep":
+        inner = NormalizeObservation(inner)
+    elif autoreset_mode == "Disabled":
+        inner = DtypeObservation(inner, np.float64)
+    else:
+        with pytest.raises(ValueError, match="NEXT_STEP or DISABLED"):
+            DtypeObservation(inner, np.float64)
+    wrapped = RecordEpisodeStatistics(NormalizeReward(inner))
+    obs, _ = wrapped.reset(seed=0)
+    action = np.tile(venv.unwrapped.task.setpoint_to_action([2.0, 2.0, 0.3]), (3, 1))  # plain PD: the wall
+    ended = 0
+    for _ in range(80):
+        obs, reward, terminated, truncated, info = wrapped.step(action)
+        assert obs.shape == (3, 18) and np.isfinite(obs).all() and np.isfinite(reward).all()
+        done = terminated | truncated
+        if done.any():
+            ended += 1
+            assert info["_episode"][done].all() and (info["episode"]["l"][done] > 0).all()
+            if autoreset_mode == "Disabled":
+                wrapped.reset(options={"reset_mask": done})
+    assert ended >= 1

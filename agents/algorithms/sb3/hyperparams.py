@@ -9,8 +9,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from scara_gym.benchmark.protocol import ENV_ID
 from scara_gym.model import checks
-from scara_gym.registration import TRAINING_ENV_ID
 
 INTEGERS = {"n_timesteps": 1, "n_envs": 1, "env_threads": 1, "torch_threads": 0, "n_steps": 1, "batch_size": 1,
             "n_epochs": 1, "buffer_size": 1, "learning_starts": 0, "gradient_steps": 1, "eval_freq": 1,
@@ -28,7 +28,7 @@ FILES = {"ppo": "ppo.yml", "sac": "sac.yml", "td3": "td3.yml", "ppo-residual": "
 """hyperparameter file of each SB3 recipe (ppo-residual: PPO acting through the residual set-point)"""
 
 
-def load_hyperparams(recipe: str, env_id: str = TRAINING_ENV_ID, control_mode: str = "pd",
+def load_hyperparams(recipe: str, env_id: str = ENV_ID, control_mode: str = "pd",
                      variant: str | None = None, randomize_target: bool = False, path: Path | None = None) -> dict:
     """The block env_id -> control_mode (or "MODE-VARIANT"; "...-random" with randomize_target
     where present) of the recipe's YAML file (or of ``path``)."""

@@ -48,8 +48,9 @@ from agents.files import (
     write_digests,
     write_json,
 )
+from scara_gym.benchmark.protocol import ENV_ID
 from scara_gym.model import checks
-from scara_gym.registration import ENV_KWARGS, GOAL_ENV_IDS, TRAINING_ENV_ID
+from scara_gym.registration import ENV_KWARGS, GOAL_ENV_IDS
 
 ALGORITHMS = ("ppo", "sac", "td3")
 # entries of a hyperparameter block that configure the run, not the SB3 algorithm
@@ -83,8 +84,8 @@ def make_envs(env_id: str, env_kwargs: dict, hyper: dict, seed: int, normalizer:
     if env_id in GOAL_ENV_IDS:  # HER asks the env for compute_reward: gym envs in SB3's DummyVecEnv
         train_env = DummyVecEnv([lambda: Monitor(gym.make(env_id, **env_kwargs))] * hyper["n_envs"])
     else:
-        train_env = SB3VecEnv(num_envs=hyper["n_envs"], num_threads=hyper.get("env_threads", 1),
-                              **{**ENV_KWARGS[env_id], **env_kwargs})
+        train_env = SB3VecEnv(num_envs=hyper["n_envs"], env_id=env_id, num_threads=hyper.get("env_threads", 1),
+                              **env_kwargs)
     train_env.seed(seed)
     eval_env = DummyVecEnv([lambda: Monitor(gym.make(env_id, **env_kwargs))])
     eval_env.seed(10_000 + seed)
@@ -179,7 +180,7 @@ def _restore_history(path: Path, eval_callback, best_mean_reward: float) -> None
     eval_callback.best_mean_reward = best_mean_reward
 
 
-def train(algo: str, out: str | Path, env_id: str = TRAINING_ENV_ID, control_mode: str = "pd", seed: int = 0,
+def train(algo: str, out: str | Path, env_id: str = ENV_ID, control_mode: str = "pd", seed: int = 0,
           hyperparams: dict | None = None, total_timesteps: int | None = None, progress_bar: bool = False,
           command: str | None = None, resume: bool = False, overwrite: bool = False) -> Path:
     """Train one run into `out` (with ``resume``: continue the one there; with ``overwrite``:
@@ -292,7 +293,7 @@ VARIANTS = ("dr", "frugal")
 def train_residual_ppo(control_mode: str = "pd", randomize_target: bool = False, seed: int = 0,
           total_timesteps: int | None = None, out: str | Path = "runs/ppo_pd",
           hyperparams: dict | None = None, eval_freq: int = 25_000, eval_episodes: int = 10,
-          progress_bar: bool = True, env_id: str = TRAINING_ENV_ID, variant: str | None = None,
+          progress_bar: bool = True, env_id: str = ENV_ID, variant: str | None = None,
           resume: bool = False, overwrite: bool = False) -> Path:
     """Train the engineered PPO agent (:func:`train` with ppo_residual.yml's residual set-point);
     writes model.zip, vecnormalize.pkl, config.json, checkpoints/, eval/ and tb/, and

@@ -13,8 +13,8 @@ from agents.policies.optimal.solutions import cached_solution, params_key
 from agents.policies.optimal.transcription import CollocationConfig, minimum_time
 from scara_gym import DEFAULT_PARAMS, ScaraParams
 from scara_gym.benchmark.episodes import run_episode
+from scara_gym.benchmark.protocol import ENV_ID
 from scara_gym.envs import OBSERVATION_LAYOUT
-from scara_gym.registration import TRAINING_ENV_ID
 
 Q = OBSERVATION_LAYOUT["q"]
 
@@ -82,7 +82,7 @@ def replaying(actions: np.ndarray, env_id: str, start, target, params: ScaraPara
     return env, policy
 
 
-def replay(actions: np.ndarray, env_id: str = TRAINING_ENV_ID, start=(0.0, 0.0, 0.0), target=(2.0, 2.0, 0.3),
+def replay(actions: np.ndarray, env_id: str = ENV_ID, start=(0.0, 0.0, 0.0), target=(2.0, 2.0, 0.3),
            params: ScaraParams = DEFAULT_PARAMS) -> dict:
     """Held actions run in the environment ("voltage" mode); the episode summary of
     scara_gym.benchmark.episodes.run_episode (success, collisions, reach_time, energy, ...)."""
@@ -118,7 +118,7 @@ def _reference_replay(env_id: str, start, target, params: ScaraParams, wall_marg
     return observations, actions, snapshots
 
 
-def reference_snapshots(env_id: str = TRAINING_ENV_ID, start=(0.0, 0.0, 0.0), target=(2.0, 2.0, 0.3),
+def reference_snapshots(env_id: str = ENV_ID, start=(0.0, 0.0, 0.0), target=(2.0, 2.0, 0.3),
                         params: ScaraParams = DEFAULT_PARAMS,
                         wall_margin: float = CollocationConfig.wall_margin) -> list[dict]:
     """The states the optimal reference (its shipped solution with this wall margin) passes
@@ -129,7 +129,7 @@ def reference_snapshots(env_id: str = TRAINING_ENV_ID, start=(0.0, 0.0, 0.0), ta
     return _reference_replay(env_id, start, target, params, wall_margin)[2]
 
 
-def reference_demonstration(env_id: str = TRAINING_ENV_ID, start=(0.0, 0.0, 0.0), target=(2.0, 2.0, 0.3),
+def reference_demonstration(env_id: str = ENV_ID, start=(0.0, 0.0, 0.0), target=(2.0, 2.0, 0.3),
                             params: ScaraParams = DEFAULT_PARAMS,
                             wall_margin: float = CollocationConfig.wall_margin) -> tuple[np.ndarray, np.ndarray]:
     """(observations, actions) of the optimal reference's replay in the environment ("voltage"
@@ -154,7 +154,7 @@ def solve_reference(start, target, params: ScaraParams = DEFAULT_PARAMS, wall_ma
     held = minimum_time("held", start, target, params, config=config, verbose=verbose)
     result = replay(held.actions, start=start, target=target, params=params)
     print(f"held (0.01 s steps, margins {config.wall_margin} m / {config.band_margin}): {held.time:.5f} s in the "
-          f"transcription ({held.status}); replayed in {TRAINING_ENV_ID}: success {result['success']}, collisions "
+          f"transcription ({held.status}); replayed in {ENV_ID}: success {result['success']}, collisions "
           f"{result['collisions']}, time {result['reach_time']:.5f} s, energy {result['energy']:.1f} J")
     return {"start": list(start), "target": list(target), "params": params_key(params),
             "config": asdict(config), "free": {**free.to_json(), "config": asdict(bound_config)}, "held": held.to_json(),

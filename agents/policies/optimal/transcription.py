@@ -38,9 +38,9 @@ import numpy as np
 
 from agents.policies.heuristic import DecHeuristic
 from scara_gym import DEFAULT_PARAMS, ScaraParams
+from scara_gym.benchmark.protocol import ENV_ID
 from scara_gym.envs import OBSERVATION_LAYOUT
 from scara_gym.model.symbolic import symbolic_model
-from scara_gym.registration import TRAINING_ENV_ID
 
 PHASES = ("A", "B", "C")  # not critical, critical (widened), above the wall
 Q, RATES, CURRENTS = (OBSERVATION_LAYOUT[name] for name in ("q", "rate", "current"))
@@ -282,7 +282,7 @@ def heuristic_guess(params: ScaraParams, distances=(0.06, 0.08, 0.1, 0.15, 0.2, 
     """States, actions and phase instants of the dec heuristic (voltage mode) from the start
     to the target: a collision-free path through the same three phases (the first trigger
     distance in `distances` that clears the wall)."""
-    env = gym.make(TRAINING_ENV_ID, control_mode="voltage", params=params, start=params.task.start,
+    env = gym.make(ENV_ID, control_mode="voltage", params=params, start=params.task.start,
                    target=params.task.target).unwrapped
     for distance in distances:
         policy = DecHeuristic(env, "continue", critical_distance=distance)
