@@ -70,10 +70,10 @@ def step_kernel(same_step, max_episode_steps, terminate_collisions, goal_thresho
 
 
 @cuda.jit
-def begin_kernel(starts, targets, robots, params, config, task, outcomes, obs):
-    """begin_robot for every robot (the episodes that reset() starts)."""
+def begin_kernel(mask, starts, targets, robots, params, config, task, outcomes, obs):
+    """begin_robot for every robot where ``mask`` (the episodes that reset() starts)."""
     i = cuda.grid(1)
-    if i >= robots.shape[0]:
+    if i >= robots.shape[0] or not mask[i]:
         return
     begin_robot(i, native(starts)[i], native(targets)[i], native(robots), native(params), native(config),
                 native(task), native(outcomes), native(obs))
@@ -104,7 +104,7 @@ def step_kernel_ptx(cc: tuple[int, int] = (9, 0)) -> str:
                  typeof(np.zeros((n, 1), records.EVENT)), typeof(task.outcomes), typeof(task.obs), flags,
                  floats(n, 1, 6), floats(n, 1, N_PARAMS_FLOATS), types.boolean, ints, ints, floats(n), flags, flags,
                  typeof(task.obs), floats(n, len(INFO_FIELDS)), ints, typeof(np.zeros(N_FLAGS, np.int64)))
-    begin_signature = (floats(n, 3), floats(n, 3), typeof(task.robots), typeof(task.robot_params),
+    begin_signature = (flags, floats(n, 3), floats(n, 3), typeof(task.robots), typeof(task.robot_params),
                        typeof(task.config), typeof(task.task), typeof(task.outcomes), typeof(task.obs))
     device = SimpleNamespace(compute_capability=cc)
     with mock.patch.object(dispatcher, "get_current_device", lambda: device):

@@ -16,7 +16,7 @@ from gymnasium.vector.utils import batch_space
 
 from scara_gym.envs.core import INFO_FIELDS, N_PARAMS_FLOATS, REWARD_TERMS, STATUS_NO_PLAN
 from scara_gym.envs.task import RESET_OPTIONS, ScaraTask, check_actions, vector_seeds
-from scara_gym.envs.vector import check_autoreset_mode
+from scara_gym.envs.vector import check_autoreset_mode, check_reset_mask
 from scara_gym.model import checks, records as R
 from scara_gym.model.simulator import SimulationError, failure_message
 
@@ -83,7 +83,10 @@ class ScaraCudaVectorEnv(VectorEnv):
     Episodes: each robot's coming episodes are drawn on the host from its own generator, in
     the order the CPU env draws them, ``plan_depth`` ahead, and begin on the GPU when the
     previous one ends (autoreset). The host refills a robot's plans when they run low; a task
-    whose episodes all start alike (no randomized target or parameters) needs none.
+    whose episodes all start alike (no randomized target or parameters) needs none. With
+    ``autoreset_mode="Disabled"`` no robot begins an episode by itself: ``reset(options=
+    {"reset_mask": mask})`` begins the masked robots' episodes (drawn on the host as in a full
+    reset) and keeps the others' and their last observations, as the CPU vector env does.
 
     Sim-to-real options: ``action_delay`` and ``action_rate_limit`` act on the device
     (torch) as on the CPU, bit for bit, with ``info["applied_action"]``. ``observation_noise``
@@ -107,9 +110,6 @@ class ScaraCudaVectorEnv(VectorEnv):
         num_envs = checks.integer("num_envs", num_envs, 1, 2**24)
         self.max_episode_steps = checks.integer("max_episode_steps", max_episode_steps, 1, 2**62)
         autoreset_mode = check_autoreset_mode(autoreset_mode)
-        if autoreset_mode == AutoresetMode.DISABLED:  # the kernels reset ended robots themselves
-            raise ValueError("autoreset_mode must be 'NextStep' or 'SameStep' on the CUDA env ('Disabled' with "
-                             "reset_mask is the CPU vector env's), got 'Disabled'")
         self.plan_depth = checks.integer("plan_depth", plan_depth, 2, 1024)
         self.threads_per_block = checks.integer("threads_per_block", threads_per_block, 1, 1024)
         if kwargs.get("render_mode") is not None:
@@ -158,6 +158,8 @@ class ScaraCudaVectorEnv(VectorEnv):
         self.d_episodes = to_device(np.zeros(n, dtype=np.int64))
         self._blocks = (n + self.threads_per_block - 1) // self.threads_per_block
         self._started = False
+        self._ended = None  # "Disabled" autoreset: the robots whose episodes ended and wait for a reset
+        self._last_obs = None  # the last observations given (clean, as the agents got them)
         self._goal_threshold = 0.0  # the goal env's episode end where > 0 (scara_gym.envs.goal)
 
         # sim-to-real, on the device: the actuator's delay line and slew limit, the noise
@@ -246,7 +248,10 @@ class ScaraCudaVectorEnv(VectorEnv):
     # -- episodes ------------------------------------------------------------------------
     def reset(self, *, seed: int | list[int | None] | None = None, options: dict | None = None):
         seeds = vector_seeds(seed, self.num_envs)
-        options = checks.mapping("reset options", options, RESET_OPTIONS)
+        options = checks.mapping("reset options", options, (*RESET_OPTIONS, "reset_mask"))
+        mask = check_reset_mask(options, self.num_envs, self.autoreset_mode)
+        if mask is not None:
+            return self._reset_masked(mask, seeds, options)
         task, n = self.task, self.num_envs
         if self.fixed_plans and not options:  # every episode starts alike: no draws, nothing per robot
             plans = [task.episode_start(None, None)] * n
@@ -261,8 +266,8 @@ class ScaraCudaVectorEnv(VectorEnv):
         targets = np.array([plan.target for plan in plans])
         self.d_params.copy_to_device(task.robot_params)
         self._kernels.begin_kernel[self._blocks, self.threads_per_block](
-            self._cuda.to_device(starts), self._cuda.to_device(targets), self.d_robots, self.d_params,
-            self.d_config, self.d_task, self.d_outcomes, self.d_obs)
+            self._cuda.to_device(np.ones(n, dtype=np.bool_)), self._cuda.to_device(starts), self._cuda.to_device(targets),
+            self.d_robots, self.d_params, self.d_config, self.d_task, self.d_outcomes, self.d_obs)
         self.d_prev_done.copy_to_device(np.zeros(n, dtype=np.bool_))
         self.d_episodes.copy_to_device(np.zeros(n, dtype=np.int64))
         # parameters travel with the plans where they vary: drawn, or overridden for this episode
@@ -292,7 +297,53 @@ class ScaraCudaVectorEnv(VectorEnv):
                                                        dtype=self._torch.float64, device=self.device)
                               for path in varied}
         obs = self._tensor(self.d_obs).clone()
-        return self._agent_view(self._noisy(obs), obs, self._targets()), info
+        self._ended = self._torch.zeros(n, dtype=self._torch.bool, device=self.device)
+        self._last_obs = (self._noisy(obs), obs)
+        return self._agent_view(*self._last_obs, self._targets()), info
+
+    def _reset_masked(self, mask: np.ndarray, seeds: list[int | None], options: dict):
+        """reset(options={"reset_mask": mask}) in "Disabled" autoreset mode: the robots of ``mask``
+        begin episodes (each drawn as in a full reset, from its seed or its own generator), the
+        others keep their episodes and their last observations."""
+        if not self._started:
+            raise RuntimeError("options['reset_mask']: call reset() without a mask first (no robot has begun)")
+        torch, task, n = self._torch, self.task, self.num_envs
+        robots = np.flatnonzero(mask)
+        rngs = {i: self._rng(i) if seeds[i] is None else seeding.np_random(seeds[i])[0] for i in robots}
+        plans = {i: task.episode_start(rng, options) for i, rng in rngs.items()}  # all checked before any change
+        for i, plan in plans.items():
+            self._rngs[i] = rngs[i]
+            task.use_params(i, plan.params)
+        self._seed_noise([s if m else None for s, m in zip(seeds, mask)])
+        starts, targets = np.zeros((n, 3)), np.zeros((n, 3))
+        for i, plan in plans.items():
+            starts[i], targets[i] = plan.start, plan.target
+        # the reset robots' parameter records, the others' as the device holds them (their targets
+        # live there: begin_kernel writes them)
+        records = self.d_params.copy_to_host()
+        records[mask] = task.robot_params[mask]
+        self.d_params.copy_to_device(records)
+        self._kernels.begin_kernel[self._blocks, self.threads_per_block](
+            self._cuda.to_device(mask), self._cuda.to_device(starts), self._cuda.to_device(targets), self.d_robots,
+            self.d_params, self.d_config, self.d_task, self.d_outcomes, self.d_obs)
+        prev_done = self.d_prev_done.copy_to_host()
+        prev_done[mask] = False
+        self.d_prev_done.copy_to_device(prev_done)
+        rows = torch.from_numpy(mask).to(self.device)
+        if self.actuator is not None:
+            self.actuator.reset(rows, self._neutral_actions(starts))
+        self._ended = self._ended & ~rows
+        clean = self._tensor(self.d_obs).clone()
+        noisy_before, clean_before = self._last_obs
+        self._last_obs = (torch.where(rows[:, None], self._noisy(clean), noisy_before),
+                          torch.where(rows[:, None], clean, clean_before))
+        info = {"target": self._targets(), "_target": rows}
+        varied = sorted({path for plan in plans.values() for path in plan.varied})
+        if varied:
+            info["params"] = {path: torch.tensor([plans[i].varied.get(path, np.nan) if i in plans else np.nan
+                                                  for i in range(n)], dtype=torch.float64, device=self.device)
+                              for path in varied}
+        return self._agent_view(*self._last_obs, self._targets()), info
 
     def _rng(self, i: int) -> np.random.Generator:
         """Robot i's episode generator (made on first use: a task without draws needs none)."""
@@ -325,6 +376,10 @@ class ScaraCudaVectorEnv(VectorEnv):
         torch, kernels = self._torch, self._kernels
         n = self.num_envs
         given = self._device_actions(actions)
+        disabled = self.autoreset_mode == AutoresetMode.DISABLED
+        if disabled and bool(self._ended.any()):  # one synchronizing read, in this mode only
+            raise RuntimeError(f"robots {torch.nonzero(self._ended).flatten().tolist()} have ended their episodes: "
+                               "reset them (reset(options={'reset_mask': ...})) before the next step")
         same_step = self.autoreset_mode == AutoresetMode.SAME_STEP
         # robots that begin an episode instead of stepping (NextStep autoreset): only the
         # actuator and the goal rules need them, so the plain env's hot path reads nothing
@@ -372,7 +427,10 @@ class ScaraCudaVectorEnv(VectorEnv):
         if self._goal_threshold > 0.0:
             clean = obs if final is None else torch.where(done[:, None], final, obs)
             reward, info = self._judge(clean, targets_before, info, ~resetting)
-        view = self._agent_view(self._noisy(obs), obs, self._targets() if self._goal_threshold > 0.0 else None)
+        noisy = self._noisy(obs)
+        if disabled:  # what a masked reset keeps for the robots it leaves alone
+            self._ended, self._last_obs = done, (noisy, obs)
+        view = self._agent_view(noisy, obs, self._targets() if self._goal_threshold > 0.0 else None)
         if final is not None:
             final_view = self._agent_view(self._noisy(final), final, targets_before)
             info["final_obs"] = _masked(torch, final_view, done)

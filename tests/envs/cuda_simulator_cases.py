@@ -272,8 +272,35 @@ def test_random_starts_with_a_delay_in_pd_mode_are_refused_on_the_device():
     ScaraCudaVectorEnv(num_envs=2, randomize_start=True)  # without the line: the plans carry the starts
 
 
-def test_the_cuda_env_defaults_to_the_latest_integration_and_refuses_disabled_autoreset():
+def test_the_cuda_env_defaults_to_the_latest_integration():
     assert {name: getattr(ScaraCudaVectorEnv(num_envs=2).task, name) for name in scara_gym.LATEST_INTEGRATION} \
         == scara_gym.LATEST_INTEGRATION
-    with pytest.raises(ValueError, match="'NextStep' or 'SameStep' on the CUDA env"):
-        ScaraCudaVectorEnv(num_envs=2, autoreset_mode="Disabled")
+
+
+@pytest.mark.parametrize("name", ["pd-random", "physics", "delay-slew"])
+def test_disabled_autoreset_with_a_reset_mask_is_the_cpu_env_bit_for_bit(name):
+    """"Disabled": no robot resets by itself; reset(options={"reset_mask": m}) begins the robots
+    of m on the device as the CPU env does, the others untouched; an ended robot stepped again
+    is named."""
+    n = 4
+    cpu, gpu = pair(name, "Disabled", n)
+    for label, c, g in zip(("obs", "info"), cpu.reset(seed=5), gpu.reset(seed=5)):
+        assert_same(c, g, f"reset {label}")
+    rng = np.random.default_rng(1)
+    seeds, resets = iter(range(50, 10_000)), 0
+    for k in range(160):
+        actions = actions_for(name, rng, n)
+        cpu_out, gpu_out = cpu.step(actions), gpu.step(actions)
+        for label, c, g in zip(("obs", "reward", "terminated", "truncated", "info"), cpu_out, gpu_out):
+            assert_same(c, g, f"step {k} {label}")
+        done = cpu_out[2] | cpu_out[3]
+        if done.any():
+            with pytest.raises(RuntimeError, match="have ended their episodes"):
+                gpu.step(actions)
+            seed = [next(seeds) if d else None for d in done]
+            options = {"reset_mask": done}
+            for label, c, g in zip(("obs", "info"), cpu.reset(seed=seed, options=dict(options)),
+                                   gpu.reset(seed=seed, options=dict(options))):
+                assert_same(c, g, f"masked reset at {k}: {label}")
+            resets += int(done.sum())
+    assert resets >= 2
