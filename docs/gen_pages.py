@@ -38,13 +38,6 @@ def _role(env_id: str) -> str:
     raise ValueError(f"no role written for {env_id!r}")
 
 
-def _entry_class(entry_point: str):
-    import importlib
-
-    module, _, name = entry_point.partition(":")
-    return getattr(importlib.import_module(module), name)
-
-
 def _arguments(kwargs: dict) -> str:
     return ", ".join(f"`{name}={value!r}`" for name, value in kwargs.items()) or "none"
 
@@ -53,9 +46,10 @@ def env_page(env_id: str) -> str:
     """The page of one registered id: its registration, then its class's card."""
     import gymnasium as gym
 
+    from scara_gym.envs.variants import card_of
+
     spec = gym.spec(env_id)
-    cls = _entry_class(spec.entry_point)
-    card = inspect.getdoc(cls)
+    card = card_of(env_id)
     summary, _, body = card.partition("\n\n")
     rows = [("entry point", f"`{spec.entry_point}`"),
             ("vector entry point", f"`{spec.vector_entry_point}`"),
@@ -63,7 +57,7 @@ def env_page(env_id: str) -> str:
             ("time limit", f"{spec.max_episode_steps} steps"),
             ("role", _role(env_id))]
     table = "\n".join(["| registration | |", "|---|---|", *(f"| {k} | {v} |" for k, v in rows)])
-    return (f"{NOTICE.format(source='the card of ' + cls.__module__ + '.' + cls.__name__)}\n\n"
+    return (f"{NOTICE.format(source='scara_gym.envs.variants.card_of(' + repr(env_id) + ')')}\n\n"
             f"# {env_id}\n\n{summary}\n\n{table}\n\n"
             f"```python\nimport gymnasium as gym\nimport scara_gym  # registers the ids\n\n"
             f"env = gym.make(\"{env_id}\")\n"

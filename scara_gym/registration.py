@@ -44,16 +44,10 @@ ENV_IDS = tuple(ENV_KWARGS)
 """Every environment id this package registers."""
 LATEST_IDS = ("Scara-C11-v2", "Scara-C11-RandomPhysics-v1", "Scara-C11-RandomWall-v1", "Scara-C11-Goal-v1")
 """The newest version of each family: every other id is frozen (Gymnasium calls it out of date)."""
-ENTRY_POINTS = {
-    "Scara-C11-RandomPhysics-v0": "scara_gym.envs.variants:ScaraRandomPhysicsEnv",
-    "Scara-C11-RandomWall-v0": "scara_gym.envs.variants:ScaraRandomWallEnv",
-    "Scara-C11-Goal-v0": "scara_gym.envs.goal:ScaraGoalEnv",
-    "Scara-C11-RandomPhysics-v1": "scara_gym.envs.variants:ScaraRandomPhysicsEnv",
-    "Scara-C11-RandomWall-v1": "scara_gym.envs.variants:ScaraRandomWallEnv",
-    "Scara-C11-Goal-v1": "scara_gym.envs.goal:ScaraGoalEnv",
-}
-"""Variant id -> its class (module:name); the plain ids use scara_gym.envs:ScaraEnv."""
-_VECTORENTRY_POINTS = {env_id: "scara_gym.envs.goal:make_goal_vector_env" for env_id in GOAL_ENV_IDS}
+ENTRY_POINTS = {env_id: "scara_gym.envs.goal:ScaraGoalEnv" for env_id in GOAL_ENV_IDS}
+"""Id -> its class (module:name) where it is not scara_gym.envs:ScaraEnv (the variants are ScaraEnv
+with other arguments; their cards: scara_gym.envs.variants)."""
+_VECTOR_ENTRY_POINTS = {env_id: "scara_gym.envs.goal:make_goal_vector_env" for env_id in GOAL_ENV_IDS}
 
 
 def register_all() -> None:
@@ -63,5 +57,5 @@ def register_all() -> None:
             # 300 steps of the default 0.01 s control step: the 3 s time limit
             register(id=env_id, entry_point=ENTRY_POINTS.get(env_id, "scara_gym.envs:ScaraEnv"),
                      max_episode_steps=300,
-                     vector_entry_point=_VECTORENTRY_POINTS.get(env_id, "scara_gym.envs.factory:make_vector_env"),
+                     vector_entry_point=_VECTOR_ENTRY_POINTS.get(env_id, "scara_gym.envs.factory:make_vector_env"),
                      kwargs=dict(kwargs))

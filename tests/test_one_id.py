@@ -32,11 +32,10 @@ def test_every_environment_class_defaults_to_the_latest_integration():
     from scara_gym.envs import ScaraEnv
     from scara_gym.envs.goal import ScaraGoalEnv, ScaraGoalVectorEnv
     from scara_gym.envs.task import ScaraTask
-    from scara_gym.envs.variants import VARIANT_CLASSES
     from scara_gym.envs.vector import ScaraVectorEnv
 
-    for make in (ScaraEnv, ScaraGoalEnv, ScaraTask, *VARIANT_CLASSES.values(),
-                 lambda: ScaraVectorEnv(num_envs=2), lambda: ScaraGoalVectorEnv(num_envs=2)):
+    for make in (ScaraEnv, ScaraGoalEnv, ScaraTask, lambda: ScaraVectorEnv(num_envs=2),
+                 lambda: ScaraGoalVectorEnv(num_envs=2)):
         env = make()
         assert integration_of(env if isinstance(env, ScaraTask) else env.task) == LATEST_INTEGRATION, make
 

@@ -64,7 +64,7 @@ def held_mode_cases(count: int = 60, skip: int = 20, seed: int = 1) -> tuple[lis
         robot = before.copy()
         robot["command"] = task.robots[0]["command"]
         cases.append(robot)
-    return cases[skip:], task.robot_params[0], task.config[0]
+    return cases[skip:], task.robot_params[0], task.step_config[0]
 
 
 def rhs(robot, p, config):

@@ -57,7 +57,7 @@ def step_counts(steps: int = 3000) -> None:
     for label, (env_id, kwargs) in CANDIDATES.items():
         env = gym.make(env_id, control_mode="pd", **kwargs)
         task = env.unwrapped.task
-        arrays = (task.robots, task.robot_params, task.config, task.task, task.log, task.outcomes, task.obs)
+        arrays = (task.robots, task.robot_params, task.step_config, task.constants, task.log, task.outcomes, task.obs)
         robot, outcome = task.robots[0], task.outcomes[0]
         env.reset(seed=0)
         env.action_space.seed(0)

@@ -190,7 +190,7 @@ def bench_cost(env_ids=None, steps: int = 1000, control_mode: str = "pd", rounds
         timers, rhs, integration_steps, untimed = run["timers"], run["rhs"], run["steps"], run["untimed"]
         robot = task.robots[0]
         rhs_seconds = seconds_per_cycle * min(
-            rhs_cycles(run["states"], robot, task.robot_params[0], task.config[0], 50)[0] for _ in range(rounds))
+            rhs_cycles(run["states"], robot, task.robot_params[0], task.step_config[0], 50)[0] for _ in range(rounds))
         us = 1e6 / steps
         total = 1e6 / rates[env_id]
         compiled = untimed * us
@@ -213,7 +213,7 @@ def _compiled_run(env, steps: int) -> dict:
     from scara_gym.envs.core import N_TIMERS, profile_robot, step_robot
 
     task = env.unwrapped.task
-    arrays = (task.robots, task.robot_params, task.config, task.task, task.log, task.outcomes, task.obs)
+    arrays = (task.robots, task.robot_params, task.step_config, task.constants, task.log, task.outcomes, task.obs)
     robot, outcome = task.robots[0], task.outcomes[0]
     env.action_space.seed(0)
     actions = [np.asarray(env.action_space.sample(), dtype=np.float64) for _ in range(steps)]

@@ -100,12 +100,12 @@ def step_kernel_ptx(cc: tuple[int, int] = (9, 0)) -> str:
     floats = lambda *shape: typeof(np.zeros(shape))  # noqa: E731
     ints, flags = typeof(np.zeros(n, np.int64)), typeof(np.zeros(n, np.bool_))
     signature = (types.boolean, types.int64, types.boolean, types.float64, floats(n, 3), typeof(task.robots),
-                 typeof(task.robot_params), floats(n, N_PARAMS_FLOATS), typeof(task.config), typeof(task.task),
+                 typeof(task.robot_params), floats(n, N_PARAMS_FLOATS), typeof(task.step_config), typeof(task.constants),
                  typeof(np.zeros((n, 1), records.EVENT)), typeof(task.outcomes), typeof(task.obs), flags,
                  floats(n, 1, 6), floats(n, 1, N_PARAMS_FLOATS), types.boolean, ints, ints, floats(n), flags, flags,
                  typeof(task.obs), floats(n, len(INFO_FIELDS)), ints, typeof(np.zeros(N_FLAGS, np.int64)))
     begin_signature = (flags, floats(n, 3), floats(n, 3), typeof(task.robots), typeof(task.robot_params),
-                       typeof(task.config), typeof(task.task), typeof(task.outcomes), typeof(task.obs))
+                       typeof(task.step_config), typeof(task.constants), typeof(task.outcomes), typeof(task.obs))
     device = SimpleNamespace(compute_capability=cc)
     with mock.patch.object(dispatcher, "get_current_device", lambda: device):
         ptx, _ = cuda.compile_ptx(step_kernel.py_func, signature, cc=cc)

@@ -14,6 +14,7 @@ from gymnasium.utils import seeding
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
+from scara_gym.envs.config import EnvConfig, make_config
 from scara_gym.envs.core import INFO_FIELDS, N_PARAMS_FLOATS, REWARD_TERMS, STATUS_NO_PLAN
 from scara_gym.envs.task import RESET_OPTIONS, ScaraTask, check_actions, vector_seeds
 from scara_gym.envs.vector import check_autoreset_mode, check_reset_mask
@@ -100,10 +101,13 @@ class ScaraCudaVectorEnv(VectorEnv):
     """
 
     metadata = {"autoreset_mode": AutoresetMode.NEXT_STEP, "render_modes": []}
+    config_defaults = EnvConfig()
+    """the configuration ``config`` and the keyword overrides start from (a subclass's own)"""
 
     def __init__(self, num_envs: int = 1, max_episode_steps: int = 300,
                  autoreset_mode: str | AutoresetMode = AutoresetMode.NEXT_STEP,
-                 plan_depth: int = 8, threads_per_block: int = 128, **kwargs) -> None:
+                 plan_depth: int = 8, threads_per_block: int = 128, config: EnvConfig | None = None,
+                 **kwargs) -> None:
         torch, cuda, kernels = load_backend()
         self._torch, self._cuda, self._kernels = torch, cuda, kernels
         self.simulator = kernels.SIMULATOR
@@ -112,9 +116,9 @@ class ScaraCudaVectorEnv(VectorEnv):
         autoreset_mode = check_autoreset_mode(autoreset_mode)
         self.plan_depth = checks.integer("plan_depth", plan_depth, 2, 1024)
         self.threads_per_block = checks.integer("threads_per_block", threads_per_block, 1, 1024)
-        if kwargs.get("render_mode") is not None:
+        if kwargs.pop("render_mode", None) is not None:
             raise ValueError("the vector environment does not render; use render_mode=None")
-        self.task = task = ScaraTask(num_robots=num_envs, **kwargs)
+        self.task = task = ScaraTask(make_config(config, kwargs, self.config_defaults), num_robots=num_envs)
         self.num_envs = n = num_envs
         self.metadata = {**type(self).metadata, "autoreset_mode": autoreset_mode}
         self.autoreset_mode = autoreset_mode
@@ -131,7 +135,7 @@ class ScaraCudaVectorEnv(VectorEnv):
 
         # device records: the task's constants, then every robot's state and results
         to_device = cuda.to_device
-        self.d_config, self.d_task = to_device(task.config), to_device(task.task)
+        self.d_config, self.d_task = to_device(task.step_config), to_device(task.constants)
         self.d_robots = to_device(task.robots)
         self.d_params = to_device(task.robot_params)
         self.d_params_flat = self._flat_view(self.d_params)
@@ -477,7 +481,7 @@ class ScaraCudaVectorEnv(VectorEnv):
         if status == STATUS_NO_PLAN:
             raise RuntimeError(f"sub-environment {i} ran out of episode plans (a bug: the host refills them)")
         raise SimulationError(f"sub-environment {i}: "
-                              + failure_message(status, robot, self.task.config[0], self.task.params))
+                              + failure_message(status, robot, self.task.step_config[0], self.task.params))
 
     # -- host views (copies), for tests and inspection -----------------------------------
     @property

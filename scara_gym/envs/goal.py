@@ -8,7 +8,6 @@ located events are ScaraEnv's.
 
 from __future__ import annotations
 
-import inspect
 from collections.abc import Mapping
 from typing import NamedTuple
 
@@ -17,6 +16,7 @@ from gymnasium import spaces
 from gymnasium.vector import AutoresetMode
 from gymnasium.vector.utils import batch_space
 
+from scara_gym.envs.config import EnvConfig, arguments_markdown
 from scara_gym.envs.core import DISTANCE_SCALE
 from scara_gym.envs.cuda_vector import ScaraCudaVectorEnv
 from scara_gym.envs.scara_env import ScaraEnv
@@ -25,6 +25,8 @@ from scara_gym.envs.vector import ScaraVectorEnv
 from scara_gym.model import checks
 
 REWARD_TYPES = ("sparse", "dense", "mixed")
+GOAL_CONFIG = EnvConfig(randomize_target=True)
+"""the goal envs' configuration before their config and overrides: goals drawn per episode"""
 GOAL_SLACK = 1e-6
 MAX_GOAL_TOLERANCE = 1.0  # [rad and m]
 """[rad or m] added to acc in the goal test: covers the float32 rounding of the goals, so
@@ -222,25 +224,10 @@ class ScaraGoalEnv(_GoalAPI, ScaraEnv):
     - goal_tolerance (None): tol of the goal test [rad for q1, q2; m for q3], in
       [acc, 1]; None: acc = 0.001, the C11 task. A looser goal (Gymnasium-Robotics'
       distance_threshold) makes an easier task, e.g. for a curriculum.
-    - control_mode ("pd"): "pd" or "voltage", as ScaraEnv.
-    - obstacle (True): the wall of task c and the widened voltage near it.
-    - collision ("terminate"): "terminate" or "penalty" (the arm passes through).
-    - target (None): the goal when not drawn; None: the C11 target (2, 2, 0.3).
-    - start (None): q(0) [rad, rad, m]; None: the C11 start (0, 0, 0).
-    - randomize_target (True): draw the goal per episode, see the starting state.
-    - control_dt (0.01): control step [s].
-    - time_limit (3.0): horizon of the time_left feature [s].
-    - params (None): a ScaraParams or dotted-path overrides, as ScaraEnv.
-    - rtol (1e-07): relative integration tolerance, as ScaraEnv.
-    - atol (1e-09): absolute integration tolerance, as ScaraEnv.
-    - exact_switches (True): locate every mode switch inside the integration steps.
-    - randomize_params (False): parameters drawn per episode, as ScaraEnv.
-    - observation_noise (None): sim-to-real noise on "observation", as ScaraEnv.
-    - action_delay (0): sim-to-real dead time in control steps, as ScaraEnv.
-    - action_rate_limit (None): sim-to-real slew limit [action units / s], as ScaraEnv.
-    - render_mode (None): "rgb_array" or "human".
-    - sensor_noise (None): noisy sensors (derived entries from the noisy measurements), as ScaraEnv.
-    - randomize_start (False): starts drawn per episode, as ScaraEnv.
+    - config (None): an :class:`~scara_gym.envs.config.EnvConfig` (default: ``GOAL_CONFIG``,
+      the latest id's arguments with goals drawn per episode); every field of it can be
+      given as a keyword, over it:
+{ARGUMENTS}
 
     ## Version history
 
@@ -253,23 +240,13 @@ class ScaraGoalEnv(_GoalAPI, ScaraEnv):
       ``sensor_noise``, ``randomize_start``.
     """
 
-    env_id = "Scara-C11-Goal-v1"
     observation_names = GOAL_OBSERVATION_NAMES
+    config_defaults = GOAL_CONFIG
 
     def __init__(self, reward_type: str = "sparse", collision_penalty: float = 50.0,
-                 goal_tolerance: float | None = None, control_mode: str = "pd", obstacle: bool = True, collision: str = "terminate", target=None, start=None,
-                 randomize_target: bool = True, control_dt: float = 0.01, time_limit: float = 3.0,
-                 params=None, rtol: float = 1e-7, atol: float = 1e-9, exact_switches: bool = True,
-                 randomize_params=False, observation_noise: dict | None = None, action_delay: int = 0,
-                 action_rate_limit: float | None = None, render_mode: str | None = None,
-                 sensor_noise: dict | None = None, randomize_start=False) -> None:
-        super().__init__(control_mode=control_mode, obstacle=obstacle, collision=collision, target=target,
-                         start=start, randomize_target=randomize_target, control_dt=control_dt,
-                         time_limit=time_limit, params=params, rtol=rtol, atol=atol,
-                         exact_switches=exact_switches, randomize_params=randomize_params,
-                         observation_noise=observation_noise, action_delay=action_delay,
-                         action_rate_limit=action_rate_limit, render_mode=render_mode,
-                         sensor_noise=sensor_noise, randomize_start=randomize_start)
+                 goal_tolerance: float | None = None, config: EnvConfig | None = None, *,
+                 render_mode: str | None = None, **overrides) -> None:
+        super().__init__(config, render_mode=render_mode, **overrides)
         self.rules = GoalRules(reward_type, collision_penalty, self.params.task.accuracy, self.collision_mode,
                                goal_tolerance)
         self.observation_space = _goal_spaces(self.task)
@@ -296,12 +273,8 @@ class ScaraGoalEnv(_GoalAPI, ScaraEnv):
         return goal_obs, float(outcome.reward), terminated, False, info
 
 
-def _with_goal_defaults(kwargs: dict) -> dict:
-    """Environment arguments with ScaraGoalEnv's defaults where not given (its physics and its
-    goals drawn per episode, not ScaraEnv's)."""
-    defaults = {name: p.default for name, p in inspect.signature(ScaraGoalEnv.__init__).parameters.items()
-                if name not in ("self", "reward_type", "collision_penalty", "goal_tolerance", "render_mode")}
-    return {**defaults, **kwargs}
+ScaraGoalEnv.__doc__ = ScaraGoalEnv.__doc__.replace("{ARGUMENTS}", arguments_markdown(
+    GOAL_CONFIG, (("render_mode", None, '"rgb_array" or "human", as ScaraEnv.'),), indent="    "))
 
 
 class ScaraGoalVectorEnv(_GoalAPI, ScaraVectorEnv):
@@ -313,8 +286,8 @@ class ScaraGoalVectorEnv(_GoalAPI, ScaraVectorEnv):
     def __init__(self, num_envs: int = 1, max_episode_steps: int = 300,
                  autoreset_mode: str | AutoresetMode = AutoresetMode.NEXT_STEP, num_threads: int | None = None,
                  reward_type: str = "sparse", collision_penalty: float = 50.0, goal_tolerance: float | None = None,
-                 **kwargs) -> None:
-        super().__init__(num_envs, max_episode_steps, autoreset_mode, num_threads, **_with_goal_defaults(kwargs))
+                 config: EnvConfig | None = None, **kwargs) -> None:
+        super().__init__(num_envs, max_episode_steps, autoreset_mode, num_threads, config, **kwargs)
         self.rules = GoalRules(reward_type, collision_penalty, self.task.params.task.accuracy,
                                self.task.collision_mode, goal_tolerance)
         self.single_observation_space = _goal_spaces(self.task)
@@ -354,8 +327,8 @@ class ScaraCudaGoalVectorEnv(_GoalAPI, ScaraCudaVectorEnv):
     def __init__(self, num_envs: int = 1, max_episode_steps: int = 300,
                  autoreset_mode: str | AutoresetMode = AutoresetMode.NEXT_STEP,
                  reward_type: str = "sparse", collision_penalty: float = 50.0, goal_tolerance: float | None = None,
-                 **kwargs) -> None:
-        super().__init__(num_envs, max_episode_steps, autoreset_mode, **_with_goal_defaults(kwargs))
+                 config: EnvConfig | None = None, **kwargs) -> None:
+        super().__init__(num_envs, max_episode_steps, autoreset_mode, config=config, **kwargs)
         self.rules = GoalRules(reward_type, collision_penalty, self.task.params.task.accuracy,
                                self.task.collision_mode, goal_tolerance)
         self._goal_threshold = self.rules.threshold

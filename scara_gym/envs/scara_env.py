@@ -2,11 +2,15 @@
 
 from __future__ import annotations
 
+import inspect
+import textwrap
+
 import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
-from scara_gym.envs.task import OBSERVATION_NAMES, RewardWeights, ScaraTask, check_actions
+from scara_gym.envs.config import EnvConfig, arguments_markdown, make_config
+from scara_gym.envs.task import OBSERVATION_NAMES, ScaraTask, check_actions, observation_table
 from scara_gym.model import checks, records as R
 from scara_gym.model.params import ScaraParams
 
@@ -51,26 +55,7 @@ class ScaraEnv(gym.Env):
     clipped (q1, q2 beyond +-6 pi rad cannot happen within 3 s at the motors' speeds).
     The wall features are 0 with ``obstacle=False``.
 
-    | index | name | unit | low | high |
-    |---|---|---|---|---|
-    | 0 | q1 | rad | -18.8496 | 18.8496 |
-    | 1 | q2 | rad | -18.8496 | 18.8496 |
-    | 2 | q3 | m | -1 | 1 |
-    | 3 | q1_rate | rad/s | -20 | 20 |
-    | 4 | q2_rate | rad/s | -20 | 20 |
-    | 5 | q3_rate | m/s | -2 | 2 |
-    | 6 | current1 | A | -6.64 | 6.64 |
-    | 7 | current2 | A | -2.771 | 2.771 |
-    | 8 | current3 | A | -1.732 | 1.732 |
-    | 9 | target_error1 | rad | -37.6991 | 37.6991 |
-    | 10 | target_error2 | rad | -37.6991 | 37.6991 |
-    | 11 | target_error3 | m | -2 | 2 |
-    | 12 | tip_x | m | -0.7 | 0.7 |
-    | 13 | tip_y | m | -0.7 | 0.7 |
-    | 14 | wall_distance | m | -1.05 | 1.05 |
-    | 15 | height_margin | m | -1.15 | 1.15 |
-    | 16 | critical | 1 | 0 | 1 |
-    | 17 | time_left | 1 | 0 | 1 |
+{OBSERVATIONS}
 
     target_error = q^ - q; wall_distance = x_tip - x_obs (signed); height_margin =
     q3 - h_obs; critical = 1 while the widened voltage applies; time_left =
@@ -136,61 +121,11 @@ class ScaraEnv(gym.Env):
 
     ## Arguments
 
-    - control_mode ("pd"): "pd" or "voltage", see the action space.
-    - obstacle (True): the wall of task c and the widened voltage near it.
-    - collision ("terminate"): "terminate" or "penalty".
-    - target (None): q^ [rad, rad, m]; None: the C11 target (2, 2, 0.3).
-    - start (None): q(0) [rad, rad, m]; None: the C11 start (0, 0, 0).
-    - randomize_target (False): draw q^ per episode, see the starting state.
-    - reward_weights (None): a RewardWeights or a dict of its fields.
-    - control_dt (0.01): control step [s]; render_fps = 1 / control_dt.
-    - time_limit (3.0): horizon of the time_left feature [s]; keep
-      max_episode_steps = time_limit / control_dt when changing either.
-    - params (None): a ScaraParams, or a dict of dotted-path overrides of the C11
-      defaults, e.g. {"arm.load_mass": 1.0, "obstacle.height": 0.2}.
-    - rtol (1e-07): relative integration tolerance inside the step (scipy's meaning),
-      in [1e-14, 1e-2]; the default is the latest id's (Scara-C11-v2); Scara-C11-v0
-      registers 1e-5, Scara-C11-v1 1e-6.
-    - atol (1e-09): absolute integration tolerance inside the step, in [1e-16, 1e-2];
-      Scara-C11-v0 registers 1e-6, Scara-C11-v1 1e-8. How close a tolerance stays to a
-      tight-tolerance run is measured by ``scara-c11 accuracy``.
-    - exact_switches (True): locate every mode switch inside the integration steps
-      (a current limit or the PD law's saturation reached and left within one step is
-      found; the saturation is a located switch, not a kink). False is the first
-      releases' integration (Scara-C11-v0), which sees switches at the ends of
-      integration steps only.
-    - tolerance_weights (None): a dict from state groups ("q", "rate", "current",
-      "energy") to a factor in [1e-3, 1e3] on rtol and atol for that group's
-      components (the others 1), e.g. {"q": 0.03, "current": 30}; no id registers it
-      (at v2's tolerances those weights miss the current target on a held-out episode).
-    - randomize_params (False): False, True ("physics"), "physics", "wall", "all" or a
-      dict {dotted path: (low, high)}: parameters drawn per episode, see the starting
-      state; the observation bounds then hold the ranges' ends.
-    - observation_noise (None): sim-to-real: {field: standard deviation} in the field's
-      unit, e.g. {"q": 1e-3, "rate": 0.05, "current": 0.02}; fields of the observation
-      ("q", "rate", "current", "target_error", "tip_x", ...: a vector field's std applies
-      to each entry) or entries by the table's names ("q3"). Zero-mean Gaussian noise per
-      step from the episode's generator, added to the returned observation only (the
-      physics, reward and episode end see the true state). Each entry gets its own noise:
-      noise on q does not reach target_error or the tip; for that, use sensor_noise.
-    - action_delay (0): sim-to-real: dead time in control steps, in [0, 100]: the action
-      given at step t is applied at step t + k; the first k steps apply the neutral
-      action (the start as set-point in "pd" mode, 0 V in "voltage" mode).
-    - action_rate_limit (None): sim-to-real: the applied action moves towards the
-      (delayed) given one by at most this many action units per second (the action spans
-      [-1, 1]; e.g. 20 allows 0.2 per 0.01 s step), starting from the neutral action.
-    - render_mode (None): "rgb_array" (headless) or "human" (a window; without a display the
-      frames are drawn off-screen, with one warning at construction).
-    - sensor_noise (None): sim-to-real: noisy sensors, {channel: standard deviation} over
-      "q", "rate" and "current" (or entries "q1" ... "current3"), e.g. {"q": 1e-3, "rate":
-      0.01, "current": 0.02}: the noise is added to the measured q, rates and currents and
-      target_error, tip_x, tip_y, wall_distance and height_margin are computed from the noisy
-      measurements (as a controller computes them from its sensors); drawn before any
-      observation_noise, from the episode's generator. Not on the CUDA vector env.
-    - randomize_start (False): True draws the start per episode as ``start`` + uniform
-      offsets in q1, q2 in [-0.05, 0.05] rad, q3 in [0, 0.05] m (the evaluation protocol's
-      start region), after the parameters and before the target; (low, high) gives offsets
-      of its own [rad, rad, m]. ``reset(options={"start": ...})`` overrides it.
+    ``ScaraEnv(config=None, render_mode=None, **overrides)``: ``config`` is an
+    :class:`~scara_gym.envs.config.EnvConfig` (default ``EnvConfig()``, the latest id's
+    arguments), and every field of it can be given as a keyword, over ``config``:
+
+{ARGUMENTS}
 
     ## Version history
 
@@ -217,22 +152,11 @@ class ScaraEnv(gym.Env):
 
     metadata = {"render_modes": ["human", "rgb_array"], "render_fps": 100}
     observation_names = OBSERVATION_NAMES
+    config_defaults = EnvConfig()
+    """the configuration an instance starts from before its config and overrides (a subclass's own)"""
 
-    def __init__(self, control_mode: str = "pd", obstacle: bool = True, collision: str = "terminate",
-                 target=None, start=None, randomize_target: bool = False,
-                 reward_weights: RewardWeights | dict | None = None, control_dt: float = 0.01,
-                 time_limit: float = 3.0, params: ScaraParams | dict | None = None,
-                 rtol: float = 1e-7, atol: float = 1e-9, exact_switches: bool = True,
-                 randomize_params=False, observation_noise: dict | None = None, action_delay: int = 0,
-                 action_rate_limit: float | None = None, render_mode: str | None = None,
-                 sensor_noise: dict | None = None, randomize_start=False,
-                 tolerance_weights: dict | None = None) -> None:
-        self.task = ScaraTask(control_mode, obstacle, collision, target, start, randomize_target,
-                              reward_weights, control_dt, time_limit, params, rtol, atol,
-                              exact_switches, num_robots=1, randomize_params=randomize_params,
-                              observation_noise=observation_noise, action_delay=action_delay,
-                              action_rate_limit=action_rate_limit, sensor_noise=sensor_noise,
-                              randomize_start=randomize_start, tolerance_weights=tolerance_weights)
+    def __init__(self, config: EnvConfig | None = None, *, render_mode: str | None = None, **overrides) -> None:
+        self.task = ScaraTask(make_config(config, overrides, self.config_defaults), num_robots=1)
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
             raise ValueError(f"render_mode must be one of {self.metadata['render_modes']} or None, "
                              f"got {render_mode!r}")
@@ -361,3 +285,25 @@ class ScaraEnv(gym.Env):
         self._robot = self.task.robots[0]
         self._outcome = self.task.outcomes[0]
         self._reward = self.task.outcomes["reward"]
+
+
+RENDER_MODE_DOC = ('"rgb_array" (headless) or "human" (a window; without a display the frames are drawn '
+                   'off-screen, with one warning at construction); fixed at construction.')
+"""the card's line for render_mode, which is the env's own argument (not the task's)"""
+
+
+def card(summary: str, config: EnvConfig, history: str) -> str:
+    """ScaraEnv's card for ``config``: ``summary`` (title and paragraphs), the spaces, reward,
+    starting state and episode end, the observation bounds and argument defaults of
+    ``config``, and ``history`` (the version history's lines); each registered variant's
+    card is one of these (scara_gym.envs.variants)."""
+    body = _BODY.replace("{OBSERVATIONS}", textwrap.indent(observation_table(ScaraTask(config)), "    "))
+    body = body.replace("{ARGUMENTS}", arguments_markdown(config, (("render_mode", None, RENDER_MODE_DOC),),
+                                                          indent="    "))
+    return f"{textwrap.indent(inspect.cleandoc(summary), '    ')}\n\n{body}    ## Version history\n\n" \
+           f"{textwrap.indent(inspect.cleandoc(history), '    ')}\n    "
+
+
+_SUMMARY, _, _REST = ScaraEnv.__doc__.partition("\n\n    ## Action space")
+_BODY, _, _HISTORY = ("    ## Action space" + _REST).partition("    ## Version history\n\n")
+ScaraEnv.__doc__ = card(_SUMMARY, ScaraEnv.config_defaults, _HISTORY)

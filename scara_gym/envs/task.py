@@ -22,6 +22,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from scara_gym.envs.config import FIELDS, EnvConfig, make_config
 from scara_gym.envs.core import (
     INFO_FIELDS,
     N_INFO,
@@ -92,6 +93,17 @@ OBSERVATION_NAMES = (
     "height_margin", "critical", "time_left")
 """One name per observation entry (the card's table)."""
 assert len(OBSERVATION_NAMES) == N_OBS
+OBSERVATION_UNITS = ("rad", "rad", "m", "rad/s", "rad/s", "m/s", "A", "A", "A", "rad", "rad", "m", "m", "m", "m", "m",
+                     "1", "1")
+"""The unit of each observation entry (the card's table)."""
+
+
+def observation_table(task: ScaraTask) -> str:
+    """The card's observation table: index, name, unit and the bounds of ``task``'s observation space."""
+    rows = ["| index | name | unit | low | high |", "|---|---|---|---|---|"]
+    for i, (name, unit) in enumerate(zip(OBSERVATION_NAMES, OBSERVATION_UNITS)):
+        rows.append(f"| {i} | {name} | {unit} | {float(task.obs_low[i]):g} | {float(task.obs_high[i]):g} |")
+    return "\n".join(rows)
 
 
 @dataclass(frozen=True)
@@ -212,18 +224,20 @@ INFO_SCALARS = INFO_FIELDS.index("hold1")
 
 
 class ScaraTask:
-    """Scara-C11 for ``num_robots`` robots: arguments as :class:`~scara_gym.envs.ScaraEnv`."""
+    """Scara-C11 for ``num_robots`` robots, configured by an :class:`~scara_gym.envs.config.EnvConfig`
+    (``config``, default ``EnvConfig()``) with keyword overrides of its fields.
 
-    def __init__(self, control_mode: str = "pd", obstacle: bool = True, collision: str = "terminate",
-                 target=None, start=None, randomize_target: bool = False,
-                 reward_weights: RewardWeights | dict | None = None, control_dt: float = 0.01,
-                 time_limit: float = 3.0, params: ScaraParams | dict | None = None,
-                 rtol: float = 1e-7, atol: float = 1e-9, exact_switches: bool = True,
-                 num_robots: int = 1, randomize_params=False, observation_noise: dict | None = None,
-                 action_delay: int = 0, action_rate_limit: float | None = None, sensor_noise: dict | None = None,
-                 randomize_start=False, tolerance_weights: dict | None = None) -> None:
-        self.arguments = {name: value for name, value in locals().items() if name not in ("self", "__class__")}
-        """the constructor's arguments as given: a model of this task (the shield's) is built from them"""
+    The environments' engine, not a public API of its own: the envs declare what agents and
+    wrappers may use (snapshots, the set-point maps, the targets, per-robot observations).
+    Its compiled records are ``step_config`` (the step's configuration), ``constants`` (the
+    task's constants), and per robot ``robots``, ``robot_params``, ``outcomes`` and ``obs``."""
+
+    def __init__(self, config: EnvConfig | None = None, num_robots: int = 1, **overrides) -> None:
+        self.env_config = config = make_config(config, overrides)
+        """the task's configuration (a model of this task, the shield's, is built from it)"""
+        (control_mode, obstacle, collision, target, start, randomize_target, reward_weights, control_dt, time_limit,
+         params, rtol, atol, exact_switches, randomize_params, observation_noise, action_delay, action_rate_limit,
+         sensor_noise, randomize_start, tolerance_weights) = (getattr(config, name) for name in FIELDS)
         self.control_mode = checks.choice("control_mode", control_mode, CONTROL_MODES)
         self.obstacle = checks.flag("obstacle", obstacle)
         self.collision_mode = checks.choice("collision", collision, COLLISION_MODES)
@@ -247,6 +261,8 @@ class ScaraTask:
         self.exact_switches = checks.flag("exact_switches", exact_switches)
         self.tolerance_weights = checks.tolerance_weights(tolerance_weights, R.STATE_GROUPS)
         num_robots = checks.integer("num_robots", num_robots, 1, MAX_ROBOTS)
+        self.arguments = {**config.as_dict(), "num_robots": num_robots}
+        """the configuration as keyword arguments of ScaraTask (kept for the shield's model)"""
         self.default_target = self.check_joints(target if target is not None else self.params.task.target, "target")
         self.default_start = self.check_joints(start if start is not None else self.params.task.start, "start")
         self.start_region = _start_region(randomize_start)
@@ -262,8 +278,8 @@ class ScaraTask:
         """the delay line and rate limit between the agent's and the applied actions, where any"""
 
         # the compiled step's records: shared configuration and constants, per-robot state
-        self.config = np.zeros(1, dtype=R.CONFIG)
-        config = self.config[0]
+        self.step_config = np.zeros(1, dtype=R.CONFIG)
+        config = self.step_config[0]
         config["control"] = CONTROLS[control_mode]
         config["critical_rule"] = R.CRIT_SWITCH if self.obstacle else R.CRIT_OFF
         config["widen"] = config["wall"] = self.obstacle
@@ -273,8 +289,8 @@ class ScaraTask:
         config["rtol"], config["atol"] = self.rtol, self.atol
         config["tolerance_weights"] = self.tolerance_weights
         config["exact_switches"] = self.exact_switches
-        self.task = np.zeros(1, dtype=TASK)
-        constants = self.task[0]
+        self.constants = np.zeros(1, dtype=TASK)
+        constants = self.constants[0]
         constants["control_dt"], constants["time_limit"] = self.control_dt, self.time_limit
         constants["obstacle"], constants["pd"] = self.obstacle, control_mode == "pd"
         for term in REWARD_TERMS:
@@ -426,7 +442,7 @@ class ScaraTask:
         self.use_params(i, plan.params)
         if self.actuator is not None:  # before the episode the robot rests: the neutral action
             self.actuator.reset(i, self.setpoint_to_action(start) if self.control_mode == "pd" else np.zeros(3))
-        begin_robot(i, start, target, self.robots, self.robot_params, self.config, self.task, self.outcomes, self.obs)
+        begin_robot(i, start, target, self.robots, self.robot_params, self.step_config, self.constants, self.outcomes, self.obs)
 
     def snapshot(self, i: int) -> dict:
         """Robot i's state as ``restore`` takes it (copies): state vector, current holds, time,
@@ -460,7 +476,7 @@ class ScaraTask:
         restore_robot(i, np.asarray(snapshot["x"], dtype=np.float64), np.asarray(snapshot["hold"], dtype=np.int64),
                       float(snapshot["t"]), float(snapshot["step_size"]), int(snapshot["episode_steps"]),
                       self.robots, self.robot_params,
-                      self.config, self.task, self.outcomes, self.obs)
+                      self.step_config, self.constants, self.outcomes, self.obs)
         if self.actuator is not None:
             self.actuator.pending[i] = pending
             self.actuator.applied[i] = applied
@@ -474,7 +490,7 @@ class ScaraTask:
             action = check_actions(action, (3,))  # finite before it enters the delay line
             clipped = int(np.count_nonzero(np.abs(action) > 1.0))
             action = self.actuator.apply(np.array([i]), np.clip(action, -1.0, 1.0)[None])[0]
-        status = step_robot(i, action, self.robots, self.robot_params, self.config, self.task, self.log,
+        status = step_robot(i, action, self.robots, self.robot_params, self.step_config, self.constants, self.log,
                             self.outcomes, self.obs)
         if status < 0:
             self._raise_for(status, i, action)
@@ -491,10 +507,10 @@ class ScaraTask:
             actions[rows] = self.actuator.apply(rows, np.clip(actions[rows], -1.0, 1.0))
         if parallel:
             with PARALLEL_LOCK:
-                step_robots(active, actions, self.robots, self.robot_params, self.config, self.task, self.log,
+                step_robots(active, actions, self.robots, self.robot_params, self.step_config, self.constants, self.log,
                             self.outcomes, self.obs)
         else:  # no thread pool involved: no lock needed
-            step_robots_serial(active, actions, self.robots, self.robot_params, self.config, self.task, self.log,
+            step_robots_serial(active, actions, self.robots, self.robot_params, self.step_config, self.constants, self.log,
                                self.outcomes, self.obs)
         if self.actuator is not None:
             self.outcomes["clipped"][rows] = clipped
@@ -507,7 +523,7 @@ class ScaraTask:
         if status == R.STATUS_BAD_ACTION:
             check_actions(action, (3,))  # raises naming it
         where = f"sub-environment {i}: " if self.num_robots > 1 else ""
-        raise SimulationError(where + failure_message(status, self.robots[i], self.config[0], self.params))
+        raise SimulationError(where + failure_message(status, self.robots[i], self.step_config[0], self.params))
 
     def observation(self, i: int, rng: np.random.Generator) -> np.ndarray:
         """Robot i's observation as the agent gets it (a copy): with sensor noise, then

@@ -26,6 +26,7 @@ from gymnasium.utils import seeding
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
+from scara_gym.envs.config import EnvConfig, make_config
 from scara_gym.envs.task import RESET_OPTIONS, ScaraTask, check_actions, vector_seeds
 from scara_gym.model import checks
 
@@ -55,7 +56,8 @@ def check_reset_mask(options: dict, num_envs: int, autoreset_mode: AutoresetMode
 
 
 class ScaraVectorEnv(VectorEnv):
-    """N copies of the env of a registered id (the same arguments as ScaraEnv), stepped in parallel.
+    """N copies of the env of a registered id (the same arguments as ScaraEnv: ``config`` and
+    keyword overrides of its fields), stepped in parallel.
 
     Extra arguments: num_envs, max_episode_steps (300: the registered time limit),
     autoreset_mode ("NextStep", "SameStep" or "Disabled"), num_threads (numba threads of the parallel
@@ -72,10 +74,12 @@ class ScaraVectorEnv(VectorEnv):
     """
 
     metadata = {"autoreset_mode": AutoresetMode.NEXT_STEP, "render_modes": []}
+    config_defaults = EnvConfig()
+    """the configuration ``config`` and the keyword overrides start from (a subclass's own)"""
 
     def __init__(self, num_envs: int = 1, max_episode_steps: int = 300,
                  autoreset_mode: str | AutoresetMode = AutoresetMode.NEXT_STEP,
-                 num_threads: int | None = None, **kwargs) -> None:
+                 num_threads: int | None = None, config: EnvConfig | None = None, **kwargs) -> None:
         if isinstance(num_envs, bool) or not isinstance(num_envs, (int, np.integer)) or num_envs < 1:
             raise ValueError(f"num_envs must be an integer >= 1, got {num_envs!r}")
         if isinstance(max_episode_steps, bool) or not isinstance(max_episode_steps, (int, np.integer)) \
@@ -90,10 +94,10 @@ class ScaraVectorEnv(VectorEnv):
             raise ValueError(f"num_threads must be an integer in [1, {available}] (numba's threads), "
                              f"got {num_threads!r}")
         self.num_threads = int(num_threads)
-        if kwargs.get("render_mode") is not None:
+        if kwargs.pop("render_mode", None) is not None:
             raise ValueError("the vector environment does not render; use render_mode=None "
                              "(render a single env instead)")
-        self.task = task = ScaraTask(num_robots=int(num_envs), **kwargs)
+        self.task = task = ScaraTask(make_config(config, kwargs, self.config_defaults), num_robots=int(num_envs))
         self.num_envs = int(num_envs)
         self.max_episode_steps = int(max_episode_steps)
         self.metadata = {**type(self).metadata, "autoreset_mode": autoreset_mode}

@@ -29,8 +29,8 @@ def fresh_task(**kwargs) -> ScaraTask:
 
 
 def call(task, action):
-    return step_robot(0, np.asarray(action, dtype=np.float64), task.robots, task.robot_params, task.config,
-                      task.task, task.log, task.outcomes, task.obs)
+    return step_robot(0, np.asarray(action, dtype=np.float64), task.robots, task.robot_params, task.step_config,
+                      task.constants, task.log, task.outcomes, task.obs)
 
 
 def test_layouts_are_derived_from_the_record_types():
@@ -66,8 +66,8 @@ def test_the_timed_step_of_the_cost_breakdown_is_the_step_bit_for_bit(exact_swit
     timers = np.zeros(N_TIMERS, dtype=np.int64)
     rng = np.random.default_rng(1)
     for action in rng.uniform(-1.0, 1.0, (40, 3)):
-        assert call(plain, action) == profile_robot(0, action, timed.robots, timed.robot_params, timed.config,
-                                                    timed.task, timed.log, timed.outcomes, timed.obs, timers)
+        assert call(plain, action) == profile_robot(0, action, timed.robots, timed.robot_params, timed.step_config,
+                                                    timed.constants, timed.log, timed.outcomes, timed.obs, timers)
     for name in ("robots", "outcomes", "obs", "log"):
         assert getattr(plain, name).tobytes() == getattr(timed, name).tobytes()
     assert timed.robots[0]["n_events"] > 0  # the location was timed too
@@ -88,7 +88,7 @@ def test_start_resets_the_outcome_and_counters():
     for _ in range(5):
         call(task, [1.0, 1.0, 1.0])
     task.robots[0]["t"] = 0.0
-    start_robot(0, task.robots, task.robot_params, task.config, task.task, task.outcomes, task.obs)
+    start_robot(0, task.robots, task.robot_params, task.step_config, task.constants, task.outcomes, task.obs)
     outcome, robot = task.outcomes[0], task.robots[0]
     assert outcome["episode_steps"] == 0 and outcome["reward"] == 0.0 and not outcome["reached"]
     assert robot["n_rhs"] == 0 and robot["step_size"] == 0.0 and robot["max_step"] == 0.01

@@ -69,7 +69,7 @@ def test_the_card_states_the_extra_arguments_and_their_defaults():
     rows.pop("argument")  # the header
     parameters = inspect.signature(ScaraCudaVectorEnv.__init__).parameters
     extra = {name: p.default for name, p in parameters.items()
-             if name not in ("self", "num_envs", "max_episode_steps", "autoreset_mode", "kwargs")}
+             if name not in ("self", "num_envs", "max_episode_steps", "autoreset_mode", "config", "kwargs")}
     assert rows == {name: str(default) for name, default in extra.items()}
     for name in ("observation_noise", "action_delay", "action_rate_limit"):  # how each acts here is said
         assert name in card

@@ -9,7 +9,8 @@ import numpy as np
 import pytest
 from gymnasium.utils.env_checker import check_env
 
-import scara_gym  # noqa: F401
+import scara_gym
+from scara_gym.envs.config import FIELDS
 from scara_gym.envs.goal import GOAL_OBSERVATION_NAMES, ScaraGoalEnv
 
 GOAL = "Scara-C11-Goal-v1"
@@ -145,9 +146,8 @@ def test_each_robot_of_the_goal_vector_env_is_the_single_env(autoreset_mode):
 
 
 def test_the_registered_arguments_are_the_class_defaults():
-    parameters = inspect.signature(ScaraGoalEnv.__init__).parameters
     registered = scara_gym.ENV_VARIANTS[GOAL]
-    assert registered == {name: parameters[name].default for name in registered}
+    assert registered == {name: getattr(ScaraGoalEnv.config_defaults, name) for name in registered}
 
 
 def test_the_card_matches_the_spaces_and_arguments():
@@ -161,10 +161,12 @@ def test_the_card_matches_the_spaces_and_arguments():
     assert [n.strip() for n in listed.split(",")] == list(GOAL_OBSERVATION_NAMES)
     arguments = doc[doc.index("## Arguments"):doc.index("## Version history")]
     documented = dict(re.findall(r"^- (\w+) \(([^)]*)\)", arguments, flags=re.M))
-    parameters = {n: p for n, p in inspect.signature(ScaraGoalEnv.__init__).parameters.items() if n != "self"}
-    assert list(documented) == list(parameters)
-    for name, parameter in parameters.items():
-        assert documented[name] == repr(parameter.default).replace("'", '"'), name
+    own = {n: p.default for n, p in inspect.signature(ScaraGoalEnv.__init__).parameters.items()
+           if n not in ("self", "overrides")}
+    configured = {name: getattr(ScaraGoalEnv.config_defaults, name) for name in FIELDS}
+    assert list(documented) == [*list(own)[:-1], *configured, "render_mode"]
+    for name, default in {**own, **configured}.items():
+        assert documented[name] == repr(default).replace("'", '"'), name
     for reward_type in ("sparse", "dense", "mixed"):
         assert f"| {reward_type} |" in doc
     with pytest.raises(ValueError, match="reward_type must be one of 'sparse', 'dense'"):

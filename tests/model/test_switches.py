@@ -136,7 +136,7 @@ def test_the_chord_bound_clears_only_steps_without_a_switch_and_more_than_the_sl
     from scara_gym.model.integrator import BEND, chord_clear, dense_output, event_values, start
 
     task = ScaraTask(control_mode="pd", exact_switches=True)
-    robots, params, configs = task.robots, task.robot_params, task.config
+    robots, params, configs = task.robots, task.robot_params, task.step_config
     p, config = params[0], configs[0]
     rng = np.random.default_rng(0)
     theta = np.linspace(0.0, 1.0, 401)
