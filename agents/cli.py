@@ -450,13 +450,15 @@ def _add_bench(sub) -> None:
     p.add_argument("--quick", action="store_true", help="small budgets (seconds), for a smoke test")
     p.add_argument("--her", action="store_true", help="also ms per SAC + HER update, SB3's buffer and ours")
     p.add_argument("--gpu", action="store_true", help="also the GPU PPO (a CUDA device and the cuda extra)")
+    p.add_argument("--env-ids", nargs="+", choices=ENV_IDS, default=[ENV_ID],
+                   help=f"the ids the CPU PPO trains on, in turn in one sitting (default: {ENV_ID})")
     p.set_defaults(handler=_bench)
 
 
 def _bench(args, argv) -> str:
     from agents.experiments import bench as agents_bench
 
-    return agents_bench.main(args.quick, args.her, args.gpu)
+    return agents_bench.main(args.quick, args.her, args.gpu, tuple(args.env_ids))
 
 
 def _add_datasets(sub) -> None:

@@ -10,17 +10,18 @@ from agents.algorithms.sb3 import training
 from agents.algorithms.sb3.hyperparams import load_hyperparams
 from agents.algorithms.torch_ppo import Config, train
 from scara_gym.benchmark.bench import gpu_available
+from scara_gym.benchmark.protocol import ENV_ID
 
 
 def bench_ppo(device: str = "cpu", num_envs: int = 16, num_steps: int = 128, total_timesteps: int = 32768,
-              sb3: bool = True, minibatch_size: int = 64) -> dict:
+              sb3: bool = True, minibatch_size: int = 64, env_id: str = ENV_ID) -> dict:
     """End-to-end training steps/s of the single-file PPO and, with sb3, of stable-baselines3's PPO
     with equal batch settings (num_envs x num_steps per rollout, minibatches of minibatch_size,
     10 epochs, the same env id and arguments, VecNormalize for SB3 as the torch PPO normalizes),
     each timed over its learning loop."""
     minibatches = max(1, num_envs * num_steps // minibatch_size)
     with tempfile.TemporaryDirectory() as out:
-        config = Config(device=device, num_envs=num_envs, num_steps=num_steps, num_minibatches=minibatches,
+        config = Config(env_id=env_id, device=device, num_envs=num_envs, num_steps=num_steps, num_minibatches=minibatches,
                         update_epochs=10, total_timesteps=total_timesteps, checkpoint_every=10**9, out=out)
         figures = {"torch_ppo": train(config)["steps_per_second"]}
     if sb3:
@@ -63,17 +64,19 @@ def bench_her(updates: int = 1000, repeats: int = 2) -> list[tuple[str, float]]:
     return rows
 
 
-def main(quick: bool = False, her: bool = False, gpu: bool = False) -> str:
-    """The benchmark's report: CPU PPO (and GPU PPO where a CUDA device is usable, and HER)."""
+def main(quick: bool = False, her: bool = False, gpu: bool = False, env_ids: tuple[str, ...] = (ENV_ID,)) -> str:
+    """The benchmark's report: CPU PPO on each of ``env_ids`` in turn, in one sitting (and GPU PPO
+    where a CUDA device is usable, and HER)."""
     import torch
 
     lines = []
-    figures = bench_ppo(total_timesteps=4096 if quick else 32768)
-    lines.append(f"PPO training on the CPU ({torch.get_num_threads()} torch threads, 16 envs x 128 steps, "
-                 f"minibatches of 64, 10 epochs, {Config.env_id}): the single-file PPO "
-                 f"{figures['torch_ppo']:,.0f} steps/s, stable-baselines3 PPO {figures['sb3_ppo']:,.0f} "
-                 f"steps/s, ratio {figures['torch_ppo'] / figures['sb3_ppo']:.2f}")
-    print(lines[-1], flush=True)
+    for env_id in env_ids:
+        figures = bench_ppo(total_timesteps=4096 if quick else 32768, env_id=env_id)
+        lines.append(f"PPO training on the CPU ({torch.get_num_threads()} torch threads, 16 envs x 128 steps, "
+                     f"minibatches of 64, 10 epochs, {env_id}): the single-file PPO "
+                     f"{figures['torch_ppo']:,.0f} steps/s, stable-baselines3 PPO {figures['sb3_ppo']:,.0f} "
+                     f"steps/s, ratio {figures['torch_ppo'] / figures['sb3_ppo']:.2f}")
+        print(lines[-1], flush=True)
     if gpu:
         why_not = gpu_available()
         if why_not is not None:
