@@ -29,6 +29,7 @@ from torch import nn
 from agents.algorithms.bc_config import BCConfig
 from agents.files import (
     POLICY_FILES,
+    WEIGHTS_FILES,
     claim_run_folder,
     exclusive,
     load_torch,
@@ -145,15 +146,15 @@ class BCPolicy:
         run_dir = Path(run_dir)
         if not (run_dir / "model.pt").exists():
             raise FileNotFoundError(f"no model.pt in {str(run_dir)!r}: give a folder written by agents.algorithms.bc")
-        verify_digests(run_dir)
+        checked = verify_digests(run_dir, WEIGHTS_FILES)  # read once: what loads is what was checked
         if env.unwrapped.control_mode != "pd":
             raise ValueError(f"{run_dir} clones 'pd' mode actions, the environment is in "
                              f"{env.unwrapped.control_mode!r} mode")
-        saved = load_torch(run_dir / "model.pt")
+        saved = load_torch(run_dir / "model.pt", data=checked.bytes("model.pt"))
         self.actor = Actor(saved["obs_size"], saved["action_size"], saved["hidden_size"], saved["layers"])
         self.actor.load_state_dict(saved["state_dict"])
         self.actor.eval()
-        config = BCConfig(**{k: v for k, v in json.loads((run_dir / "config.json").read_text()).items()
+        config = BCConfig(**{k: v for k, v in checked.json("config.json").items()
                              if k in BCConfig.__dataclass_fields__})
         self.mapping = None if config.residual_scale is None else \
             ResidualSetpoint(env.unwrapped.task, config.residual_scale, config.residual_deadzone)

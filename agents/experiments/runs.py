@@ -32,6 +32,7 @@ from agents.files import (
     publish_manifest,
     require_trusted,
     verify_digests,
+    write_atomic,
     write_digests,
     write_json,
 )
@@ -63,12 +64,13 @@ def publish(run: Path, dest: Path) -> Path:
     run, dest = Path(run), Path(dest)
     if not is_finished(run):
         raise ValueError(f"{run} is not a finished run (no config.json with model.zip or model.pt)")
-    if any((run / name).exists() for name in PICKLE_FILES):
-        require_trusted(run)
-    else:
-        verify_digests(run)
+    # read once and checked: what is published is what was checked (pickle: only from a trusted folder)
+    check = require_trusted if any((run / name).exists() for name in PICKLE_FILES) else verify_digests
+    checked = check(run, wanted=POLICY_FILES)
     for name in PUBLISHED:
-        if (run / name).exists():
+        if name in POLICY_FILES and name in checked:
+            write_atomic(dest / name, checked.bytes(name))
+        elif name not in POLICY_FILES and (run / name).exists():
             (dest / name).parent.mkdir(parents=True, exist_ok=True)
             shutil.copy2(run / name, dest / name)
     write_digests(dest, POLICY_FILES)
