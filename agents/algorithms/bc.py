@@ -57,22 +57,20 @@ def residual_outputs(mapping: ResidualSetpoint, obs: np.ndarray, actions: np.nda
 def transitions(dataset_id: str, config: BCConfig | None = None) -> tuple[np.ndarray, np.ndarray]:
     """(observations, targets) of every step of a Minari dataset: each recorded action (with
     ``config.residual_scale``: its residual output, residual_outputs) with the observation it was
-    taken in."""
-    import minari
+    taken in. The dataset loads without running code (agents.experiments.datasets.load) and an
+    episode with values that are not finite or outside their spaces is refused by name."""
+    from agents.experiments.datasets import check_episode, environment, load
 
-    try:
-        dataset = minari.load_dataset(dataset_id)
-    except FileNotFoundError:
-        raise FileNotFoundError(f"no dataset {dataset_id!r} in Minari's data folder; build it with "
-                                f"scara-agents datasets build {dataset_id}") from None
+    dataset = load(dataset_id)  # never runs the entry point the dataset names
+    env = environment(dataset)
     obs, actions = [], []
     for episode in dataset.iterate_episodes():
+        check_episode(dataset_id, episode, env.observation_space, env.action_space)  # no NaN, nothing out of range
         obs.append(episode.observations[:-1])
         actions.append(episode.actions)
     obs, actions = np.concatenate(obs).astype(np.float32), np.concatenate(actions).astype(np.float32)
     if config is not None and config.residual_scale is not None:
-        mapping = ResidualSetpoint(dataset.recover_environment().unwrapped.task, config.residual_scale,
-                                   config.residual_deadzone)
+        mapping = ResidualSetpoint(env.unwrapped.task, config.residual_scale, config.residual_deadzone)
         actions = residual_outputs(mapping, obs, actions)
     return obs, actions
 
@@ -106,15 +104,18 @@ def train(config: BCConfig, overwrite: bool = False, resume: bool = False) -> di
     and keeps no checkpoint: ``resume`` finds a finished run and leaves it, an unfinished one is
     trained again."""
     out = Path(config.out)
+    started = time.perf_counter()
+    finished = resume and (out / "model.pt").exists() and (out / "summary.json").exists()
+    # the dataset is loaded and checked before the folder is made: a refused one leaves nothing behind
+    data = None if finished else transitions(config.dataset, config)
     with exclusive(out):
         claim_run_folder(out, run_record(config), resume, overwrite)
         if resume and (out / "model.pt").exists() and (out / "summary.json").exists():
             return json.loads((out / "config.json").read_text())
-        started = time.perf_counter()
         if config.torch_threads:
             torch.set_num_threads(config.torch_threads)
         torch.manual_seed(config.seed)
-        obs, actions = transitions(config.dataset, config)
+        obs, actions = data if data is not None else transitions(config.dataset, config)
         actor = Actor(obs.shape[1], actions.shape[1], config.hidden_size, config.layers)
         actor.mean.copy_(torch.as_tensor(obs.mean(0)))
         actor.scale.copy_(torch.as_tensor(obs.std(0) + 1e-6))
