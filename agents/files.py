@@ -135,6 +135,7 @@ def exclusive(folder: str | Path) -> Iterator[Path]:
         finally:
             _HELD[folder] -= 1
         return
+    before = set(os.listdir(folder)) if folder.is_dir() else None
     folder.mkdir(parents=True, exist_ok=True)
     handle = open(folder / ".lock", "a+")
     try:
@@ -152,10 +153,27 @@ def exclusive(folder: str | Path) -> Iterator[Path]:
     _HELD[folder] = 1
     try:
         yield folder
+    except BaseException:
+        _tidy(folder, before)
+        raise
     finally:
         del _HELD[folder]
         fcntl.flock(handle, fcntl.LOCK_UN)
         handle.close()
+
+
+def _tidy(folder: Path, before: set[str] | None) -> None:
+    """After a holder of ``folder`` failed: where all it added is the lock and the run record (a
+    mistake refused before anything trained), remove them, and the folder where it made it, so that
+    a refused command leaves nothing behind. Anything more (a checkpoint, logs) stays for a resume."""
+    added = set(os.listdir(folder)) - (before or set())
+    if added - {".lock", RUN_RECORD}:
+        return
+    for name in added:
+        (folder / name).unlink(missing_ok=True)
+    if before is None:
+        with contextlib.suppress(OSError):
+            folder.rmdir()
 
 
 POLICY_FILES = ("config.json", "model.zip", "model.pt", "vecnormalize.pkl")
@@ -256,11 +274,21 @@ class Checked:
                                     (f" from {self.folder / DIGESTS}" if self.manifest else ""))
         return self.files[name]
 
-    def json(self, name: str):
-        try:
-            return json.loads(self.bytes(name))
-        except json.JSONDecodeError as error:
-            raise ValueError(f"{self.folder / name}: not JSON ({error})") from None
+    def json(self, name: str) -> dict:
+        """The JSON object (a record: every JSON file of a folder is one) ``name`` holds."""
+        return json_record(self.folder / name, self.bytes(name))
+
+
+def json_record(path: str | Path, data: bytes | str | None = None) -> dict:
+    """The JSON object in ``path`` (or in ``data``, its bytes already read): a file that is not
+    JSON, or holds anything but an object (``[]``, a number), is refused in one line naming it."""
+    try:
+        value = json.loads(Path(path).read_bytes() if data is None else data)
+    except (json.JSONDecodeError, UnicodeDecodeError) as error:
+        raise ValueError(f"{path}: not JSON ({error})") from None
+    if not isinstance(value, dict):
+        raise ValueError(f"{path}: holds a JSON {type(value).__name__}, not the object (the record) expected")
+    return value
 
 
 def verify_digests(folder: str | Path, wanted: Iterable[str] = ()) -> Checked:
@@ -484,9 +512,9 @@ def recorded_run(folder: str | Path) -> dict:
     config.json says of :data:`IDENTITY`; a run of a newer format is refused by name."""
     folder = Path(folder)
     if (folder / RUN_RECORD).is_file():
-        record = json.loads((folder / RUN_RECORD).read_text())
+        record = json_record(folder / RUN_RECORD)
     elif (folder / "config.json").is_file():
-        config = json.loads((folder / "config.json").read_text())
+        config = json_record(folder / "config.json")
         torch_run = config.get("algo") == "torch-ppo"
         record = {"trainer": "torch-ppo" if torch_run else "sb3", "algo": config.get("algo", "ppo"),
                   "env_id": config.get("env_id"), "seed": config.get("seed"),

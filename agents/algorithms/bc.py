@@ -148,6 +148,11 @@ class BCPolicy:
         if not (run_dir / "model.pt").exists():
             raise FileNotFoundError(f"no model.pt in {str(run_dir)!r}: give a folder written by agents.algorithms.bc")
         checked = verify_digests(run_dir, WEIGHTS_FILES)  # read once: what loads is what was checked
+        record = checked.json("config.json")
+        if record.get("algo") != "bc":
+            other = " (a torch PPO run: torchppo:DIR)" if record.get("algo") == "torch-ppo" else ""
+            raise ValueError(f"{run_dir}: not a behaviour-cloning run (its config.json says algo "
+                             f"{record.get('algo')!r}){other}")
         if env.unwrapped.control_mode != "pd":
             raise ValueError(f"{run_dir} clones 'pd' mode actions, the environment is in "
                              f"{env.unwrapped.control_mode!r} mode")
@@ -155,8 +160,7 @@ class BCPolicy:
         self.actor = Actor(saved["obs_size"], saved["action_size"], saved["hidden_size"], saved["layers"])
         self.actor.load_state_dict(saved["state_dict"])
         self.actor.eval()
-        config = BCConfig(**{k: v for k, v in checked.json("config.json").items()
-                             if k in BCConfig.__dataclass_fields__})
+        config = BCConfig(**{k: v for k, v in record.items() if k in BCConfig.__dataclass_fields__})
         self.mapping = None if config.residual_scale is None else \
             ResidualSetpoint(env.unwrapped.task, config.residual_scale, config.residual_deadzone)
         self.name = f"bc ({run_dir.name})"

@@ -263,6 +263,13 @@ def train(config: Config, resume: bool = False, hooks: list[Hook] | None = None,
     hooks: the research add-ons the loop calls (default: those config's add-on fields ask for,
     agents.algorithms.torch_ppo_hooks.hooks_for)."""
     out = Path(config.out)
+    if config.device == "cuda":  # a machine without the GPU is told so before the run folder is made
+        from scara_gym.envs.cuda_vector import load_backend
+
+        try:
+            load_backend()
+        except (ImportError, RuntimeError) as error:
+            raise ValueError(str(error)) from None
     with exclusive(out):
         claim_run_folder(out, run_record(config), resume, overwrite)
         return _train(config, resume, hooks)

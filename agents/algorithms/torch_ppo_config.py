@@ -11,6 +11,8 @@ from scara_gym.model import checks
 from scara_gym.registration import ENV_IDS, TRAINING_ENV_ID
 
 INF = float("inf")
+SEED_MAX = 2**32 - 1
+"""the largest seed a run takes (torch's, numpy's and the vector env's seeding, seed + robot, stay in range)"""
 
 
 @dataclass
@@ -76,7 +78,7 @@ class Config:
         if self.residual_scale is not None:
             self.residual_scale = tuple(float(x) for x in checks.real_array(
                 "residual_scale", self.residual_scale, (3,), low=1e-12, high=1e6, range_text="every entry > 0"))
-        for name, low, high in (("seed", 0, None), ("num_envs", 1, None), ("num_steps", 1, None),
+        for name, low, high in (("seed", 0, SEED_MAX), ("num_envs", 1, None), ("num_steps", 1, None),
                                 ("total_timesteps", 1, None), ("num_minibatches", 1, None), ("update_epochs", 1, None),
                                 ("hidden_size", 1, None), ("env_threads", 1, None), ("torch_threads", 0, None),
                                 ("checkpoint_every", 1, None), ("demo_bc_pretrain", 0, None)):
