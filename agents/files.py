@@ -105,10 +105,12 @@ def save_arrays(path: str | Path, arrays: dict[str, np.ndarray]) -> Path:
 
 def load_arrays(path: str | Path) -> dict[str, np.ndarray]:
     """The arrays of an .npz, refusing pickled objects (allow_pickle=False)."""
+    import zipfile
+
     try:
         with np.load(path, allow_pickle=False) as data:
             return {k: data[k] for k in data.files}
-    except (ValueError, OSError, EOFError) as error:
+    except (ValueError, OSError, EOFError, zipfile.BadZipFile) as error:
         raise ValueError(f"{path}: not an array file this package wrote, refused without running it "
                          f"({type(error).__name__}: {error})") from None
 
