@@ -59,13 +59,12 @@ def transitions(dataset_id: str, config: BCConfig | None = None) -> tuple[np.nda
     ``config.residual_scale``: its residual output, residual_outputs) with the observation it was
     taken in. The dataset loads without running code (agents.experiments.datasets.load) and an
     episode with values that are not finite or outside their spaces is refused by name."""
-    from agents.experiments.datasets import check_episode, environment, load
+    from agents.experiments.datasets import checked_episodes, environment, load
 
     dataset = load(dataset_id)  # never runs the entry point the dataset names
     env = environment(dataset)
     obs, actions = [], []
-    for episode in dataset.iterate_episodes():
-        check_episode(dataset_id, episode, env.observation_space, env.action_space)  # no NaN, nothing out of range
+    for episode in checked_episodes(dataset, env):  # no NaN, nothing outside the spaces
         obs.append(episode.observations[:-1])
         actions.append(episode.actions)
     obs, actions = np.concatenate(obs).astype(np.float32), np.concatenate(actions).astype(np.float32)

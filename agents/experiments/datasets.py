@@ -203,9 +203,35 @@ def load(name: str):
         raise ValueError(f"dataset {name}: not an HDF5 dataset (data_format "
                          f"{metadata.get('data_format') if isinstance(metadata, dict) else None!r}); refused")
     observation_space, action_space = _spaces(name, metadata, _environment(name, metadata))
-    storage = get_minari_storage("hdf5")(folder / "data", observation_space, action_space,
-                                         jpeg_encoding=bool(metadata.get("jpeg_encoding", True)))
-    return minari.MinariDataset(storage)
+    try:  # the HDF5 file opened here: a truncated or corrupted one is refused in one line
+        import h5py
+
+        h5py.File(folder / "data" / "main_data.hdf5", "r").close()
+        storage = get_minari_storage("hdf5")(folder / "data", observation_space, action_space,
+                                             jpeg_encoding=bool(metadata.get("jpeg_encoding", True)))
+        return minari.MinariDataset(storage)
+    except (OSError, KeyError, ValueError) as error:
+        raise _unreadable(name, folder, error) from None
+
+
+def _unreadable(name: str, folder: Path, error: Exception) -> ValueError:
+    return ValueError(f"dataset {name}: {folder / 'data' / 'main_data.hdf5'} cannot be read "
+                      f"({str(error).splitlines()[0] if str(error) else type(error).__name__}); refused")
+
+
+def checked_episodes(dataset, env: gym.Env):
+    """Every episode of a MinariDataset, each checked against ``env``'s spaces (:func:`check_episode`);
+    a data file that cannot be read is refused in one line naming the dataset."""
+    iterator = dataset.iterate_episodes()
+    while True:
+        try:
+            episode = next(iterator)
+        except StopIteration:
+            return
+        except (OSError, KeyError) as error:
+            raise _unreadable(dataset.id, dataset.storage.data_path.parent, error) from None
+        check_episode(dataset.id, episode, env.observation_space, env.action_space)
+        yield episode
 
 
 def environment(dataset) -> gym.Env:
@@ -506,10 +532,9 @@ def replay(dataset, episodes: int | None = None) -> int:
     env = environment(dataset)
     metadata = list(dataset.storage.get_episode_metadata(range(dataset.total_episodes)))
     replayed = 0
-    for episode, meta in zip(dataset.iterate_episodes(), metadata):
+    for episode, meta in zip(checked_episodes(dataset, env), metadata):
         if meta.get("seed") is None or (episodes is not None and replayed >= episodes):
             continue
-        check_episode(dataset.id, episode, env.observation_space, env.action_space)
         obs, _ = env.reset(seed=int(meta["seed"]))
         assert np.array_equal(obs, episode.observations[0]), f"episode {episode.id}: the first observation differs"
         for step, action in enumerate(episode.actions):

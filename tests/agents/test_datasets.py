@@ -228,3 +228,15 @@ def test_a_built_dataset_carries_a_manifest_and_a_changed_file_is_refused(minari
         data.write(b"\0")
     with pytest.raises(ValueError, match=r"main_data\.hdf5: its SHA-256 is not the one"):
         train_bc(BCConfig(dataset=name, steps=2, hidden_size=8, out=str(tmp_path / "bc")))
+
+
+def test_a_truncated_dataset_without_a_manifest_is_refused_in_one_line(minari_folder, tmp_path):
+    from agents import files
+
+    name = _small_dataset()
+    (minari_folder / name / files.DIGESTS).unlink()  # one from elsewhere: nothing to check its bytes against
+    data = minari_folder / name / "data" / "main_data.hdf5"
+    data.write_bytes(data.read_bytes()[: data.stat().st_size // 2])
+    with pytest.raises(ValueError, match=rf"dataset {name}: .*main_data\.hdf5 cannot be read"):
+        train_bc(BCConfig(dataset=name, steps=2, hidden_size=8, out=str(tmp_path / "bc")))
+    assert not (tmp_path / "bc").exists()

@@ -40,12 +40,13 @@ def shipped_models() -> list[str]:
 
 
 def resolve_model(name_or_path: str | Path) -> Path:
-    """A model folder: an existing path, else the name of a shipped model."""
+    """A model folder: the name of a shipped model (a plain name: a folder of that name in the working
+    folder does not shadow it; give it as ./NAME), else an existing path."""
+    if str(name_or_path) in shipped_models():
+        return SHIPPED_MODELS / str(name_or_path)
     path = Path(name_or_path)
     if (path / "model.zip").exists():
         return path
-    if str(name_or_path) in shipped_models():
-        return SHIPPED_MODELS / str(name_or_path)
     raise FileNotFoundError(f"no PPO model at {str(name_or_path)!r}: give a folder with model.zip "
                             f"or a shipped model name {shipped_models()}")
 
