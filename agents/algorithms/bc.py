@@ -18,7 +18,6 @@ config.json (this Config, the dataset's id and size, the training time) and SHA2
 
 from __future__ import annotations
 
-import json
 import time
 from pathlib import Path
 
@@ -32,6 +31,7 @@ from agents.files import (
     WEIGHTS_FILES,
     claim_run_folder,
     exclusive,
+    json_record,
     load_torch,
     save_torch,
     verify_digests,
@@ -110,7 +110,7 @@ def train(config: BCConfig, overwrite: bool = False, resume: bool = False) -> di
     with exclusive(out):
         claim_run_folder(out, run_record(config), resume, overwrite)
         if resume and (out / "model.pt").exists() and (out / "summary.json").exists():
-            return json.loads((out / "config.json").read_text())
+            return json_record(out / "config.json")
         if config.torch_threads:
             torch.set_num_threads(config.torch_threads)
         torch.manual_seed(config.seed)

@@ -22,7 +22,7 @@ import numpy as np
 
 from agents.algorithms.sb3.policy import PPOPolicy, SB3Policy
 from agents.experiments.runs import is_finished
-from agents.files import POLICY_FILES, load_arrays, save_arrays
+from agents.files import POLICY_FILES, json_record, load_arrays, save_arrays
 from agents.policies import DecHeuristic, PDPolicy, mpc as mpc_module
 from agents.policies.mpc import MPCConfig, MPCPolicy, solve_time_summary
 from agents.policies.optimal import OptimalPolicy
@@ -232,7 +232,7 @@ def learned_policy(env, run_dir: Path, shield: bool = False):
     ``shield``, behind scara_gym.wrappers.Shield (its model has the nominal parameters)."""
     if (Path(run_dir) / "model.zip").exists():
         policy = SB3Policy(env, run_dir)
-    elif json.loads((Path(run_dir) / "config.json").read_text()).get("algo") == "bc":
+    elif json_record(Path(run_dir) / "config.json").get("algo") == "bc":
         from agents.algorithms.bc import BCPolicy
 
         policy = BCPolicy(env, run_dir)

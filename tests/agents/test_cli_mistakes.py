@@ -205,10 +205,12 @@ FILE_MISTAKES = [
     (["torch-ppo", "--total-timesteps", "16", "--out", "RUN"], r"RUN/config\.json: holds a JSON list, not the object"),
     (["evaluate", "--policies", "bc:RUN"], r"RUN/config\.json: holds a JSON list"),
     (["evaluate", "--policies", "bc:TORCH"], r"TORCH: not a behaviour-cloning run .*torchppo:DIR"),
+    (["evaluate", "--policies", "bc:BROKEN"], r"BROKEN/config\.json: not JSON"),
+    (["torch-ppo", "--total-timesteps", "16", "--out", "BROKEN"], r"BROKEN/config\.json: not JSON"),
 ]
 """as MISTAKES, in a working folder that holds FILE (a file), RUN (a folder with a config.json of [],
-a summary.json and a model.pt) and TORCH (a torch PPO run's config.json and a model.pt): each is
-refused in one line and the folder is left as it was"""
+a summary.json and a model.pt), TORCH (a torch PPO run's config.json and a model.pt) and BROKEN (a
+config.json cut short and a model.pt): each is refused in one line and the folder is left as it was"""
 
 
 @pytest.mark.parametrize("argv, says", FILE_MISTAKES, ids=[" ".join(a) for a, _ in FILE_MISTAKES])
@@ -223,6 +225,9 @@ def test_a_path_of_the_wrong_kind_is_refused_in_one_line_and_nothing_changes(arg
     (tmp_path / "TORCH").mkdir()
     (tmp_path / "TORCH" / "config.json").write_text('{"algo": "torch-ppo"}')
     (tmp_path / "TORCH" / "model.pt").write_bytes(b"")
+    (tmp_path / "BROKEN").mkdir()
+    (tmp_path / "BROKEN" / "config.json").write_text('{"algo": "bc", ')
+    (tmp_path / "BROKEN" / "model.pt").write_bytes(b"")
     before = sorted(str(p.relative_to(tmp_path)) for p in tmp_path.rglob("*"))
     _refused_in_one_line(argv, says, capsys)
     assert sorted(str(p.relative_to(tmp_path)) for p in tmp_path.rglob("*")) == before  # nothing left behind
