@@ -29,7 +29,7 @@ import warnings
 from pathlib import Path
 
 from agents.algorithms.bc_config import BCConfig
-from agents.algorithms.sb3.hyperparams import load_hyperparams
+from agents.algorithms.sb3.hyperparams import load_hyperparams, numba_threads
 from agents.algorithms.sb3.policy import resolve_model
 from agents.algorithms.torch_ppo_config import SEED_MAX, Config, parse_floats, parse_reward_weights
 from agents.experiments import datasets, sweep as sweeps
@@ -272,6 +272,10 @@ def _torch_ppo(args, argv) -> dict:
     _resume_or_overwrite(args)
     config = Config(**values)  # every field checked (Config.__post_init__)
     _folder_or_error("--out", config.out)
+    threads = numba_threads()  # this machine's: not a Config check, a run may resume on a larger machine
+    if config.device == "cpu" and config.env_threads > threads:
+        raise UserError(f"--env-threads must be an integer in [1, {threads}] (numba's threads on this machine), "
+                        f"got {config.env_threads}")
     if args.resume and not (Path(config.out) / "checkpoint.pt").exists():
         raise UserError(f"--resume: {config.out} holds no checkpoint.pt to resume from")
     summary = train(config, resume=args.resume, overwrite=args.overwrite)

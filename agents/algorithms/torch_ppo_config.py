@@ -7,6 +7,7 @@ import dataclasses
 from dataclasses import dataclass, field
 
 from scara_gym.envs.randomization import PRESETS
+from scara_gym.envs.task import MAX_ROBOTS
 from scara_gym.model import checks
 from scara_gym.registration import ENV_IDS, TRAINING_ENV_ID
 
@@ -78,7 +79,7 @@ class Config:
         if self.residual_scale is not None:
             self.residual_scale = tuple(float(x) for x in checks.real_array(
                 "residual_scale", self.residual_scale, (3,), low=1e-12, high=1e6, range_text="every entry > 0"))
-        for name, low, high in (("seed", 0, SEED_MAX), ("num_envs", 1, None), ("num_steps", 1, None),
+        for name, low, high in (("seed", 0, SEED_MAX), ("num_envs", 1, MAX_ROBOTS), ("num_steps", 1, None),
                                 ("total_timesteps", 1, None), ("num_minibatches", 1, None), ("update_epochs", 1, None),
                                 ("hidden_size", 1, None), ("env_threads", 1, None), ("torch_threads", 0, None),
                                 ("checkpoint_every", 1, None), ("demo_bc_pretrain", 0, None)):

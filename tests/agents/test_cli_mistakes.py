@@ -83,7 +83,7 @@ MISTAKES = [
     (["train", "ppo", "--set", "clip_range=0"], "clip_range must be"),
     (["train", "td3", "--set", "noise_std=-1"], "noise_std must be"),
     (["train", "td3", "--set", "learning_starts=-5"], "learning_starts must be an integer >= 0"),
-    (["train", "ppo-residual", "--set", "n_envs=0"], "n_envs must be an integer >= 1"),
+    (["train", "ppo-residual", "--set", "n_envs=0"], r"n_envs must be an integer in \[1, "),
     (["train", "sac", "--total-timesteps", "0"], "--total-timesteps must be >= 1"),
     # torch-ppo
     (["torch-ppo", "--num-steps", "0"], "num_steps must be an integer >= 1"),
@@ -94,7 +94,7 @@ MISTAKES = [
     (["torch-ppo", "--gamma", "2"], "gamma must be"),
     (["torch-ppo", "--gae-lambda", "0"], "gae_lambda must be"),
     (["torch-ppo", "--hidden-size", "0"], "hidden_size must be an integer >= 1"),
-    (["torch-ppo", "--num-envs", "0"], "num_envs must be an integer >= 1"),
+    (["torch-ppo", "--num-envs", "0"], r"num_envs must be an integer in \[1, "),
     (["torch-ppo", "--num-minibatches", "3"], "num_minibatches must divide"),
     (["torch-ppo", "--num-minibatches", "0"], "num_minibatches must be an integer >= 1"),
     (["torch-ppo", "--total-timesteps", "-1"], "total_timesteps must be an integer >= 1"),
