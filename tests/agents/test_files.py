@@ -465,3 +465,21 @@ def test_a_trust_store_others_could_write_is_refused(tmp_path, monkeypatch, mist
     for act in (files.is_trusted, files.require_trusted, files.record_trusted):
         with pytest.raises(ValueError, match=rf"{store}: the trust store .*(a symlink|writable by)"):
             act(folder)
+
+
+def test_a_run_refused_after_its_folder_was_claimed_leaves_nothing_behind(tmp_path):
+    new, old = tmp_path / "new", tmp_path / "old"
+    old.mkdir()
+    (old / "NOTES").write_text("mine\n")
+    for folder in (new, old):
+        with pytest.raises(ValueError, match="refused after the claim"):
+            with files.exclusive(folder):
+                files.claim_run_folder(folder, {"trainer": "bc", "seed": 0}, resume=False, overwrite=False)
+                raise ValueError("refused after the claim")  # as a dataset or a device refused there would be
+    assert not new.exists() and sorted(p.name for p in old.iterdir()) == ["NOTES"]
+    with pytest.raises(KeyboardInterrupt):
+        with files.exclusive(new):
+            files.claim_run_folder(new, {"trainer": "bc", "seed": 0}, resume=False, overwrite=False)
+            files.write_json(new / "summary.json", {})  # it got further: what it wrote stays, for a resume
+            raise KeyboardInterrupt
+    assert sorted(p.name for p in new.iterdir()) == [".lock", files.RUN_RECORD, "summary.json"]
