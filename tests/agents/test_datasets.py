@@ -240,3 +240,61 @@ def test_a_truncated_dataset_without_a_manifest_is_refused_in_one_line(minari_fo
     with pytest.raises(ValueError, match=rf"dataset {name}: .*main_data\.hdf5 cannot be read"):
         train_bc(BCConfig(dataset=name, steps=2, hidden_size=8, out=str(tmp_path / "bc")))
     assert not (tmp_path / "bc").exists()
+
+
+@pytest.mark.slow
+def test_a_build_killed_at_random_instants_never_leaves_a_dataset_read_as_valid(tmp_path, monkeypatch):
+    """SIGKILL at random instants of `datasets build` (the expert given, so that the episodes and the
+    write are most of its time): after every kill the dataset either does not load or is the whole
+    one, and a rerun ends in the dataset an uninterrupted build writes."""
+    import os
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    name, episodes = "scara/c11/random-v0", 150
+    code = (f"from agents.experiments import datasets; datasets.build({name!r}, episodes={episodes}, "
+            f"expert={EXPERT!r}, scores=(0.0, 1.0), verbose=False)")
+    monkeypatch.setenv("MINARI_DATASETS_PATH", str(tmp_path / "reference"))
+    (tmp_path / "reference").mkdir()
+    started = time.perf_counter()
+    subprocess.run([sys.executable, "-c", code], check=True, capture_output=True)
+    span = time.perf_counter() - started
+    reference = datasets.load(name)
+
+    def same(dataset) -> bool:
+        return dataset.total_episodes == reference.total_episodes and all(
+            np.array_equal(a.observations, b.observations) and np.array_equal(a.actions, b.actions)
+            and np.array_equal(a.rewards, b.rewards)
+            for a, b in zip(dataset.iterate_episodes(), reference.iterate_episodes()))
+
+    folder = tmp_path / "killed"
+    folder.mkdir()
+    monkeypatch.setenv("MINARI_DATASETS_PATH", str(folder))
+    rng = np.random.default_rng(0)
+    kills = 0
+
+    def loaded():
+        try:
+            dataset = datasets.load(name)
+        except FileNotFoundError:
+            return None  # not there: never half there
+        assert same(dataset)  # there: the whole dataset
+        return dataset
+
+    for _ in range(5):  # each start killed at a random instant, most of them within the build
+        if loaded() is not None:
+            break
+        process = subprocess.Popen([sys.executable, "-c", code], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+                                   env={**os.environ, "MINARI_DATASETS_PATH": str(folder)})
+        time.sleep(float(rng.uniform(0.3, 1.0)) * span)
+        if process.poll() is None:
+            process.send_signal(signal.SIGKILL)
+            kills += 1
+        process.wait()
+    assert kills >= 2
+    if loaded() is None:  # the last rerun runs to the end
+        subprocess.run([sys.executable, "-c", code], check=True, capture_output=True,
+                       env={**os.environ, "MINARI_DATASETS_PATH": str(folder)})
+    assert same(loaded())
