@@ -28,9 +28,9 @@ import sys
 from pathlib import Path
 
 from agents.algorithms.bc_config import BCConfig
-from agents.algorithms.sb3.hyperparams import load_hyperparams
+from agents.algorithms.sb3.hyperparams import load_hyperparams, numba_threads
 from agents.algorithms.sb3.policy import resolve_model
-from agents.algorithms.torch_ppo_config import Config, parse_floats, parse_reward_weights
+from agents.algorithms.torch_ppo_config import SEED_MAX, Config, parse_floats, parse_reward_weights
 from agents.experiments import datasets, sweep as sweeps
 from agents.experiments.checkpoints import select_checkpoint
 from agents.experiments.comparison import SHIELDED, compare_in_parallel
@@ -60,6 +60,39 @@ def _add_trust(p) -> None:
                         "with the package nor written by a run on this machine; only for folders you trust")
 
 
+def _folder(text: str) -> Path:
+    """A folder argument: not empty (that would be the working folder, silently) and not an
+    existing file (argparse names the argument in its one-line error)."""
+    if not text:
+        raise argparse.ArgumentTypeError("an empty path; give a folder ('.' for the working folder)")
+    if Path(text).exists() and not Path(text).is_dir():
+        raise argparse.ArgumentTypeError(f"{text} is a file, not a folder")
+    return Path(text)
+
+
+def _file(text: str) -> Path:
+    """A file argument: not empty and not an existing folder."""
+    if not text:
+        raise argparse.ArgumentTypeError("an empty path; give a file")
+    if Path(text).is_dir():
+        raise argparse.ArgumentTypeError(f"{text} is a folder, not a file")
+    return Path(text)
+
+
+def _folder_or_error(name: str, text: str) -> None:
+    try:
+        _folder(text)
+    except argparse.ArgumentTypeError as error:
+        raise UserError(f"{name}: {error}") from None
+
+
+def _seeds(name: str, seeds) -> None:
+    values = seeds if isinstance(seeds, list) else [seeds]
+    if any(s is not None and not 0 <= s <= SEED_MAX for s in values):
+        raise UserError(f"{name} must be {'integers' if isinstance(seeds, list) else 'an integer'} in [0, {SEED_MAX}], "
+                        f"got {seeds}")
+
+
 def _positive(name: str, value, allowed: str = ">= 1") -> None:
     if value is not None and value < 1:
         raise UserError(f"{name} must be {allowed}, got {value}")
@@ -82,7 +115,7 @@ def _add_evaluate(sub) -> None:
     p.add_argument("--episodes", type=int, default=None, help="default: the condition's own count")
     p.add_argument("--seed", type=int, default=None,
                    help="episode i uses seed + i (default: the condition's evaluation seeds)")
-    p.add_argument("--out", type=Path, default=Path("results"))
+    p.add_argument("--out", type=_folder, default=Path("results"))
     _add_trust(p)
     p.set_defaults(handler=_evaluate)
 
@@ -90,8 +123,7 @@ def _add_evaluate(sub) -> None:
 def _evaluate(args, argv) -> list[dict]:
     if args.episodes is not None:
         _positive("--episodes", args.episodes)
-    if args.seed is not None and args.seed < 0:
-        raise UserError(f"--seed must be an integer >= 0, got {args.seed}")
+    _seeds("--seed", args.seed)
     rows, traces = evaluate(args.policies, args.control_mode, args.condition, args.episodes, env_id=args.env_id,
                             seed=args.seed)
     models = {i: resolve_model(s.split(":", 1)[1]) for i, s in enumerate(args.policies) if s.startswith("ppo:")}
@@ -110,9 +142,17 @@ def _evaluate(args, argv) -> list[dict]:
 
 # -- train, torch-ppo, campaign ---------------------------------------------------------------
 def _yaml_value(text: str):
+    """A --set value as YAML reads it, but a number written as 1e-4 is a number (YAML 1.1, which
+    PyYAML reads, takes only 1.0e-4)."""
     import yaml
 
-    return yaml.safe_load(text)
+    value = yaml.safe_load(text)
+    if isinstance(value, str):
+        try:
+            return float(value)
+        except ValueError:
+            pass
+    return value
 
 
 def _config_value(field: dataclasses.Field, text: str):
@@ -142,7 +182,7 @@ def _add_train(sub) -> None:
     p.add_argument("--env-id", choices=ENV_IDS, default=ENV_ID)
     p.add_argument("--control-mode", choices=MODES, default="pd")
     p.add_argument("--seed", type=int, default=0)
-    p.add_argument("--out", type=Path, default=None, help="default: runs/NAME/seedN")
+    p.add_argument("--out", type=_folder, default=None, help="default: runs/NAME/seedN")
     p.add_argument("--total-timesteps", type=int, default=None, help="default: the run's budget")
     p.add_argument("--randomize-target", action="store_true",
                    help="ppo-residual runs: targets drawn per episode (the YAML's MODE-random block)")
@@ -166,11 +206,14 @@ def _resume_or_overwrite(args) -> None:
         raise UserError("--resume and --overwrite exclude each other: continue the run, or replace it")
 
 
+FLAGGED = {"seed": "--seed", "out": "--out", "env_id": "--env-id", "control_mode": "--control-mode"}
+"""the Config fields train sets from its own flags, not from --set"""
+
+
 def _train(args, argv) -> Path:
     _resume_or_overwrite(args)
     _positive("--total-timesteps", args.total_timesteps)
-    if args.seed < 0:
-        raise UserError(f"--seed must be an integer >= 0, got {args.seed}")
+    _seeds("--seed", args.seed)
     run = spec(args.name)
     overrides = {}
     for item in args.set:
@@ -182,7 +225,10 @@ def _train(args, argv) -> Path:
     if overrides or args.randomize_target:
         if run.trainer in ("torch-ppo", "bc"):
             config_class, what = (Config, "torch PPO Config") if run.trainer == "torch-ppo" else (BCConfig, "BCConfig")
-            fields = {f.name: f for f in dataclasses.fields(config_class) if f.name not in ("seed", "out")}
+            fields = {f.name: f for f in dataclasses.fields(config_class) if f.name not in FLAGGED}
+            flagged = sorted(set(overrides) & set(FLAGGED))
+            if flagged:  # the command's own flags set these, and would silently replace them
+                raise UserError(f"--set {flagged[0]}: give it as {FLAGGED[flagged[0]]}")
             unknown = sorted(set(overrides) - set(fields))
             if unknown:
                 raise UserError(f"--set names {unknown}, which are not {what} fields; they are {sorted(fields)}")
@@ -225,6 +271,11 @@ def _torch_ppo(args, argv) -> dict:
             values[f.name] = value if isinstance(value, bool) else _config_value(f, value)
     _resume_or_overwrite(args)
     config = Config(**values)  # every field checked (Config.__post_init__)
+    _folder_or_error("--out", config.out)
+    threads = numba_threads()  # this machine's: not a Config check, a run may resume on a larger machine
+    if config.device == "cpu" and config.env_threads > threads:
+        raise UserError(f"--env-threads must be an integer in [1, {threads}] (numba's threads on this machine), "
+                        f"got {config.env_threads}")
     if args.resume and not (Path(config.out) / "checkpoint.pt").exists():
         raise UserError(f"--resume: {config.out} holds no checkpoint.pt to resume from")
     summary = train(config, resume=args.resume, overwrite=args.overwrite)
@@ -251,10 +302,10 @@ def _add_campaign(sub) -> None:
     p.add_argument("--seeds", nargs="+", type=int, default=[0, 1, 2, 3, 4])
     p.add_argument("--env-id", choices=ENV_IDS, default=ENV_ID)
     p.add_argument("--control-mode", choices=MODES, default="pd")
-    p.add_argument("--runs", type=Path, default=Path("runs/baselines"))
+    p.add_argument("--runs", type=_folder, default=Path("runs/baselines"))
     p.add_argument("--total-timesteps", type=int, default=None, help="default: each run's budget")
     p.add_argument("--shard", default="0/1", help="K/N: every N-th run, starting at the K-th (0-based)")
-    p.add_argument("--publish", type=Path, default=None, metavar="DEST",
+    p.add_argument("--publish", type=_folder, default=None, metavar="DEST",
                    help="copy the finished runs of the list, model and history only, to DEST (e.g. "
                         "docs/results/runs), instead of training")
     _add_trust(p)
@@ -262,11 +313,12 @@ def _add_campaign(sub) -> None:
 
 
 def _campaign(args, argv) -> list[Path]:
-    if any(seed < 0 for seed in args.seeds):
-        raise UserError(f"--seeds must be integers >= 0, got {args.seeds}")
+    _seeds("--seeds", args.seeds)
     _positive("--total-timesteps", args.total_timesteps)
     for name in args.names:
         spec(name)
+    if args.publish is not None and not args.runs.is_dir():  # nothing to publish: say so, not exit 0
+        raise UserError(f"--runs: no folder {str(args.runs)!r} to publish from (the trained runs, ENV_ID/MODE/NAME/seedN)")
     return campaign(args.names or list(RUNS), args.seeds, args.runs, args.env_id, args.control_mode,
                     args.total_timesteps, _shard(args.shard), args.publish)
 
@@ -276,17 +328,17 @@ def _add_compare(sub) -> None:
     p = sub.add_parser("compare", help="learned vs classical vs optimal in every condition",
                        description="Every policy in every condition over the same seeds: comparison.json, "
                                    "comparison.md and the figures under --out.")
-    p.add_argument("--runs", type=Path, default=Path("runs/baselines"),
+    p.add_argument("--runs", type=_folder, default=Path("runs/baselines"),
                    help="the folder of learned runs (ENV_ID/MODE/NAME/seedN)")
     p.add_argument("--conditions", nargs="+", choices=list(CONDITIONS), default=list(CONDITIONS))
     p.add_argument("--episodes", type=int, default=None,
                    help="episodes per condition (default: each condition's own; the C11 episode is one)")
     p.add_argument("--no-optimal", action="store_true", help="leave out the optimal reference")
-    p.add_argument("--out", type=Path, default=Path("docs/results"))
+    p.add_argument("--out", type=_folder, default=Path("docs/results"))
     p.add_argument("--jobs", type=int, default=1, help="processes evaluating conditions side by side")
     p.add_argument("--shield", nargs="*", default=list(SHIELDED), metavar="NAME",
                    help="learned runs to evaluate behind the shield as well (none: --shield)")
-    p.add_argument("--cache", type=Path, default=None, metavar="DIR",
+    p.add_argument("--cache", type=_folder, default=None, metavar="DIR",
                    help="keep learned runs' evaluations in DIR and reuse them (e.g. runs/compare-cache)")
     p.add_argument("--pilots", action="store_true", help="also the runs tagged 'pilot' (left out by default)")
     p.add_argument("--no-robust-shield", action="store_true",
@@ -300,6 +352,9 @@ def _compare(args, argv) -> list[dict]:
     if args.episodes is not None:
         _positive("--episodes", args.episodes)
     _positive("--jobs", args.jobs)
+    unknown = [name for name in args.shield if name not in RUNS]
+    if unknown:
+        raise UserError(f"--shield names {unknown}, which are not registered runs; they are {sorted(RUNS)}")
     if not args.runs.is_dir():
         raise UserError(f"--runs: no folder {str(args.runs)!r} (the learned runs, ENV_ID/MODE/NAME/seedN)")
     entries, traces = compare_in_parallel(args.runs, args.conditions, args.jobs, episodes=args.episodes,
@@ -324,11 +379,11 @@ def _add_curves(sub) -> None:
                        description="PD behind the shield, the tuned heuristic and the learned baselines at growing "
                                    "parameter shifts and sensor noise (agents.experiments.curves): curves.json and "
                                    "comparison_robustness.png under --out.")
-    p.add_argument("--runs", type=Path, default=None, help="the folder of learned runs (none: classical only)")
+    p.add_argument("--runs", type=_folder, default=None, help="the folder of learned runs (none: classical only)")
     p.add_argument("--episodes", type=int, default=20, help="episodes per point (and per seed)")
     p.add_argument("--robust-shield", action="store_true", help="also PD behind the robust shield (slow)")
-    p.add_argument("--cache", type=Path, default=None, metavar="DIR", help="as compare --cache")
-    p.add_argument("--out", type=Path, default=Path("docs/results"))
+    p.add_argument("--cache", type=_folder, default=None, metavar="DIR", help="as compare --cache")
+    p.add_argument("--out", type=_folder, default=Path("docs/results"))
     _add_trust(p)
     p.set_defaults(handler=_curves)
 
@@ -356,20 +411,19 @@ def _add_sweep(sub) -> None:
     p.add_argument("--condition", choices=list(CONDITIONS), default="c11", help="the evaluation condition")
     p.add_argument("--episodes", type=int, default=100)
     p.add_argument("--total-timesteps", type=int, default=None, help="default: the run's budget")
-    p.add_argument("--out", type=Path, default=Path("runs/sweeps/default"))
+    p.add_argument("--out", type=_folder, default=Path("runs/sweeps/default"))
     p.add_argument("--address", default=None, help="an existing Ray cluster (default: a local runtime)")
     p.add_argument("--cpus-per-trial", type=float, default=1.0)
     p.add_argument("--max-concurrent", type=int, default=None,
                    help="trials at once (default: as many as the CPUs allow); 1 leaves the other cores free")
     p.add_argument("--max-failures", type=int, default=2, help="retries of a failed trial")
-    p.add_argument("--publish", type=Path, default=None, metavar="DEST",
+    p.add_argument("--publish", type=_folder, default=None, metavar="DEST",
                    help="copy the finished trials' runs to DEST/ENV_ID/MODE/NAME/seedN (e.g. docs/results/runs)")
     p.set_defaults(handler=_sweep)
 
 
 def _sweep(args, argv) -> list[dict]:
-    if any(seed < 0 for seed in args.seeds):
-        raise UserError(f"--seeds must be integers >= 0, got {args.seeds}")
+    _seeds("--seeds", args.seeds)
     _positive("--episodes", args.episodes)
     _positive("--total-timesteps", args.total_timesteps)
     _positive("--max-concurrent", args.max_concurrent)
@@ -392,7 +446,7 @@ def _add_select(sub) -> None:
                        description="Evaluate every checkpoint of an SB3 PPO run and copy the fastest that "
                                    "succeeds in every episode without a collision to --out.")
     p.add_argument("run_dir", type=Path, metavar="RUN", help="a run folder with checkpoints/ (SB3 PPO)")
-    p.add_argument("--out", type=Path, required=True)
+    p.add_argument("--out", type=_folder, required=True)
     p.add_argument("--episodes", type=int, default=5)
     p.add_argument("--seed", type=int, default=5000)
     _add_trust(p)
@@ -401,6 +455,7 @@ def _add_select(sub) -> None:
 
 def _select(args, argv) -> dict:
     _positive("--episodes", args.episodes)
+    _seeds("--seed", args.seed)
     if not (args.run_dir / "config.json").exists() or not list(args.run_dir.glob("checkpoints/ppo_*_steps.zip")):
         raise UserError(f"RUN: {str(args.run_dir)!r} holds no config.json with checkpoints/ppo_N_steps.zip")
     return select_checkpoint(args.run_dir, args.out, args.episodes, args.seed)
@@ -413,7 +468,7 @@ def _add_optimal(sub) -> None:
                                    "solution in the environment; --write keeps it as a shipped solution file.")
     p.add_argument("--start", nargs=3, type=float, default=list(DEFAULT_PARAMS.task.start))
     p.add_argument("--target", nargs=3, type=float, default=list(DEFAULT_PARAMS.task.target))
-    p.add_argument("--write", type=Path, default=None,
+    p.add_argument("--write", type=_file, default=None,
                    help="write the solutions as JSON here (the shipped file: agents/optimal_solutions/c11.json)")
     shifts = ["c11", *FIXED_SHIFTS]
     p.add_argument("--condition", choices=shifts, default="c11",
@@ -470,10 +525,10 @@ def _add_datasets(sub) -> None:
     p.add_argument("name", nargs="?", help="a dataset id (scara-agents datasets list), or 'all'")
     p.add_argument("--episodes", type=int, help="episodes per dataset (default: its own count; medium-replay: "
                                                 "all the medium run's training episodes)")
-    p.add_argument("--out", type=Path, help="the datasets' folder (default: Minari's)")
-    p.add_argument("--runs", type=Path, default=Path("docs/results/runs"),
+    p.add_argument("--out", type=_folder, help="the datasets' folder (default: Minari's)")
+    p.add_argument("--runs", type=_folder, default=Path("docs/results/runs"),
                    help="the published runs the experts are picked from (default: docs/results/runs)")
-    p.add_argument("--summary", type=Path, help="with 'all': write the datasets' sizes and build times here (JSON)")
+    p.add_argument("--summary", type=_file, help="with 'all': write the datasets' sizes and build times here (JSON)")
     p.set_defaults(handler=_datasets)
 
 

@@ -7,13 +7,19 @@ leaves either the old file or the new one, never a truncated one. Weights load w
 ``torch.load(weights_only=True)``, cache entries with ``numpy.load(allow_pickle=False)``: a
 file that holds anything but tensors, numbers and plain containers is refused, not run. A
 finished model folder (trained, published or shipped) carries a manifest of its files' SHA-256
-digests (``SHA256SUMS``), checked before its policy loads: a changed or corrupted file is refused.
+digests (``SHA256SUMS``). Trust is content, not a name: a manifest lists every file the folder's
+policy may load, a manifest that lists nothing trusts nothing, a file the folder holds that its
+loader wants but the manifest does not list is refused unread, and every file is read once into
+memory, checked against its digest and deserialized from those same bytes (the manifest too:
+its digest is taken of the bytes that were parsed), so a file swapped after its check is never
+the one loaded (:func:`verify_digests`, :class:`Checked`).
 
 SB3's ``model.zip`` and replay buffers and its ``vecnormalize.pkl`` are pickle by design: loading
 one runs whatever code it holds. They load only from a trusted folder (:func:`require_trusted`):
-one whose manifest this machine's own runs wrote (recorded in the trust store, :func:`trust_store`),
-one shipped or published with the package (:data:`PUBLISHED_MANIFESTS`), or any folder when the
-user says so (``--trust``, or ``SCARA_GYM_TRUST=1`` for a program and the workers it starts).
+one whose manifest this machine's own runs wrote (recorded in the trust store, :func:`trust_store`,
+which is refused when it is a symlink, another user's or writable by others), one shipped or
+published with the package (:data:`PUBLISHED_MANIFESTS`), or any folder when the user says so
+(``--trust``, or ``SCARA_GYM_TRUST=1`` for a program and the workers it starts).
 
 A run folder is claimed by its trainer under its lock (:func:`claim_run_folder`): a folder that
 holds a run of other settings, or one written by a newer version, is refused by name; one that holds
@@ -28,8 +34,11 @@ import hashlib
 import io
 import json
 import os
+import re
 import shutil
-from collections.abc import Iterator
+import stat
+from collections.abc import Iterable, Iterator
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -70,15 +79,18 @@ def save_torch(value, path: str | Path) -> Path:
     return write_atomic(path, buffer.getvalue())
 
 
-def load_torch(path: str | Path, map_location="cpu"):
+def load_torch(path: str | Path, map_location="cpu", data: bytes | None = None):
     """``torch.load`` of tensors, numbers and plain containers only (weights_only=True): a file
-    with any other object, as a pickle payload would need, is refused with an error naming it."""
+    with any other object, as a pickle payload would need, is refused with an error naming it.
+    ``data``: the file's bytes, already read and checked (:func:`verify_digests`): loaded from
+    them, ``path`` only naming the file."""
     import pickle
 
     import torch
 
     try:
-        return torch.load(path, map_location=map_location, weights_only=True)
+        source = path if data is None else io.BytesIO(data)
+        return torch.load(source, map_location=map_location, weights_only=True)
     except (pickle.UnpicklingError, RuntimeError, EOFError, OSError) as error:
         raise ValueError(f"{path}: not a weights file this package wrote, refused without running it "
                          f"({type(error).__name__}: {str(error).splitlines()[0] if str(error) else ''})") from None
@@ -93,10 +105,12 @@ def save_arrays(path: str | Path, arrays: dict[str, np.ndarray]) -> Path:
 
 def load_arrays(path: str | Path) -> dict[str, np.ndarray]:
     """The arrays of an .npz, refusing pickled objects (allow_pickle=False)."""
+    import zipfile
+
     try:
         with np.load(path, allow_pickle=False) as data:
             return {k: data[k] for k in data.files}
-    except (ValueError, OSError, EOFError) as error:
+    except (ValueError, OSError, EOFError, zipfile.BadZipFile) as error:
         raise ValueError(f"{path}: not an array file this package wrote, refused without running it "
                          f"({type(error).__name__}: {error})") from None
 
@@ -123,6 +137,7 @@ def exclusive(folder: str | Path) -> Iterator[Path]:
         finally:
             _HELD[folder] -= 1
         return
+    before = set(os.listdir(folder)) if folder.is_dir() else None
     folder.mkdir(parents=True, exist_ok=True)
     handle = open(folder / ".lock", "a+")
     try:
@@ -140,14 +155,33 @@ def exclusive(folder: str | Path) -> Iterator[Path]:
     _HELD[folder] = 1
     try:
         yield folder
+    except BaseException:
+        _tidy(folder, before)
+        raise
     finally:
         del _HELD[folder]
         fcntl.flock(handle, fcntl.LOCK_UN)
         handle.close()
 
 
+def _tidy(folder: Path, before: set[str] | None) -> None:
+    """After a holder of ``folder`` failed: where all it added is the lock and the run record (a
+    mistake refused before anything trained), remove them, and the folder where it made it, so that
+    a refused command leaves nothing behind. Anything more (a checkpoint, logs) stays for a resume."""
+    added = set(os.listdir(folder)) - (before or set())
+    if added - {".lock", RUN_RECORD}:
+        return
+    for name in added:
+        (folder / name).unlink(missing_ok=True)
+    if before is None:
+        with contextlib.suppress(OSError):
+            folder.rmdir()
+
+
 POLICY_FILES = ("config.json", "model.zip", "model.pt", "vecnormalize.pkl")
 """the files of a finished run that its policy's actions depend on"""
+WEIGHTS_FILES = ("config.json", "model.pt")
+"""the files a torch run's policy (torch PPO, behaviour cloning) loads: JSON and weights_only weights"""
 PICKLE_FILES = ("model.zip", "vecnormalize.pkl", "replay_buffer.pkl")
 """the files of SB3 runs that are pickle by design: loading one runs any code it holds"""
 DIGESTS = "SHA256SUMS"
@@ -159,28 +193,133 @@ def file_digest(path: str | Path) -> str:
     return hashlib.sha256(Path(path).read_bytes()).hexdigest()
 
 
-def write_digests(folder: str | Path, names) -> Path:
-    """The manifest of ``folder``: the SHA-256 of each of ``names`` that it holds (atomically)."""
+def write_digests(folder: str | Path, names: Iterable[str]) -> Path:
+    """The manifest of ``folder``: the SHA-256 of each of ``names`` that it holds (atomically). A
+    manifest that would list nothing is refused: it would vouch for nothing, and a digest of it
+    would be the SHA-256 of no bytes, the same for every empty manifest anywhere."""
     folder = Path(folder)
     lines = [f"{file_digest(folder / name)}  {name}\n" for name in sorted(names) if (folder / name).is_file()]
+    if not lines:
+        raise ValueError(f"{folder}: none of {sorted(names)} to list in {DIGESTS}; an empty manifest is never written")
     return write_atomic(folder / DIGESTS, "".join(lines))
 
 
-def verify_digests(folder: str | Path) -> None:
-    """Where ``folder`` has a manifest, every file it lists must be there with that SHA-256; a file
-    changed, corrupted or missing is refused with an error naming it (a folder without one: no check)."""
+def read_once(path: str | Path) -> bytes:
+    """A regular file's bytes, read through one descriptor, not through a symlink (ValueError
+    naming the path otherwise): what is checked and then used is this one read."""
+    path = Path(path)
+    try:
+        descriptor = os.open(path, os.O_RDONLY | os.O_NOFOLLOW)
+    except OSError as error:
+        if path.is_symlink():
+            raise ValueError(f"{path}: a symlink, refused (a folder's files are its own)") from None
+        raise ValueError(f"{path}: cannot be read ({error.strerror})") from None
+    with os.fdopen(descriptor, "rb") as file:
+        if not stat.S_ISREG(os.fstat(file.fileno()).st_mode):
+            raise ValueError(f"{path}: not a regular file, refused")
+        return file.read()
+
+
+_DIGEST = re.compile(r"[0-9a-f]{64}")
+
+
+def _listed_name(name: str) -> bool:
+    """A name a manifest may list: a relative path inside its folder, no '..', '.', hidden or
+    empty part."""
+    parts = name.split("/")
+    return bool(name) and not name.startswith("/") and all(p and not p.startswith(".") for p in parts)
+
+
+def read_manifest(folder: str | Path) -> tuple[str, dict[str, str]] | None:
+    """``folder``'s manifest, read once: (the SHA-256 of its bytes, name -> SHA-256 of each file
+    it lists), or None without one. A line that is not ``DIGEST  NAME`` with a name inside the
+    folder, a name listed twice, and a manifest that lists nothing are refused by name."""
+    path = Path(folder) / DIGESTS
+    if not path.exists() and not path.is_symlink():
+        return None
+    data = read_once(path)
+    listed: dict[str, str] = {}
+    try:
+        text = data.decode()
+    except UnicodeDecodeError:
+        raise ValueError(f"{path}: not a manifest (not text), refused") from None
+    for number, line in enumerate(text.splitlines(), 1):
+        digest, separator, name = line.partition("  ")
+        if not separator or not _DIGEST.fullmatch(digest) or not _listed_name(name):
+            raise ValueError(f"{path}, line {number}: not 'SHA-256  NAME' with NAME inside the folder, refused")
+        if name in listed:
+            raise ValueError(f"{path}: lists {name} twice, refused")
+        listed[name] = digest
+    if not listed:
+        raise ValueError(f"{path} lists no file: an empty manifest trusts nothing (a manifest lists every file the "
+                         "folder may load), refused")
+    return hashlib.sha256(data).hexdigest(), listed
+
+
+@dataclass(frozen=True)
+class Checked:
+    """A folder's files as they were read once and checked (:func:`verify_digests`): load from
+    these bytes, never from the folder again."""
+
+    folder: Path
+    files: dict[str, bytes]
+    """name -> bytes: every file the manifest lists (without a manifest: the wanted ones the folder holds)"""
+    manifest: str | None
+    """the SHA-256 of the manifest's bytes, None where the folder has none"""
+
+    def __contains__(self, name: str) -> bool:
+        return name in self.files
+
+    def bytes(self, name: str) -> bytes:
+        if name not in self.files:
+            raise FileNotFoundError(f"{self.folder / name}: missing" +
+                                    (f" from {self.folder / DIGESTS}" if self.manifest else ""))
+        return self.files[name]
+
+    def json(self, name: str) -> dict:
+        """The JSON object (a record: every JSON file of a folder is one) ``name`` holds."""
+        return json_record(self.folder / name, self.bytes(name))
+
+
+def json_record(path: str | Path, data: bytes | str | None = None) -> dict:
+    """The JSON object in ``path`` (or in ``data``, its bytes already read): a file that is not
+    JSON, or holds anything but an object (``[]``, a number), is refused in one line naming it."""
+    try:
+        value = json.loads(Path(path).read_bytes() if data is None else data)
+    except (json.JSONDecodeError, UnicodeDecodeError) as error:
+        raise ValueError(f"{path}: not JSON ({error})") from None
+    if not isinstance(value, dict):
+        raise ValueError(f"{path}: holds a JSON {type(value).__name__}, not the object (the record) expected")
+    return value
+
+
+def verify_digests(folder: str | Path, wanted: Iterable[str] = ()) -> Checked:
+    """Read ``folder``'s manifest and every file it lists, once each, into memory, every one
+    with the SHA-256 its manifest records; returns them (:class:`Checked`). A file listed but
+    missing or changed is refused by name, and so is a file of ``wanted`` (what the caller may
+    load) that the folder holds and its manifest does not list: a partial manifest trusts nothing
+    for it, and it is never read. A folder without a manifest: the files of ``wanted`` it holds,
+    unchecked (its loaders run no code: weights_only, JSON; pickle needs :func:`require_trusted`)."""
     folder = Path(folder)
-    manifest = folder / DIGESTS
-    if not manifest.exists():
-        return
-    for line in manifest.read_text().splitlines():
-        digest, _, name = line.partition("  ")
+    manifest = read_manifest(folder)
+    if manifest is None:
+        return Checked(folder, {name: read_once(folder / name) for name in wanted if (folder / name).is_file()}, None)
+    digest, listed = manifest
+    for name in wanted:
+        if name not in listed and ((folder / name).exists() or (folder / name).is_symlink()):
+            raise ValueError(f"{folder / name}: not listed in {folder / DIGESTS}, which lists every file the folder "
+                             "may load: refused unread")
+    files = {}
+    for name, expected in listed.items():
         path = folder / name
-        if not path.is_file():
-            raise ValueError(f"{path}: listed in {manifest} but missing")
-        if file_digest(path) != digest:
-            raise ValueError(f"{path}: its SHA-256 is not the one {manifest} records; the file was changed or "
+        if not path.exists() and not path.is_symlink():
+            raise ValueError(f"{path}: listed in {folder / DIGESTS} but missing")
+        data = read_once(path)
+        if hashlib.sha256(data).hexdigest() != expected:
+            raise ValueError(f"{path}: its SHA-256 is not the one {folder / DIGESTS} records; the file was changed or "
                              "corrupted, and is refused")
+        files[name] = data
+    return Checked(folder, files, digest)
 
 
 # -- trust of pickle files ----------------------------------------------------------------------
@@ -226,19 +365,72 @@ def _digests_in(path: Path) -> set[str]:
     return {line.strip() for line in path.read_text().splitlines() if len(line.strip()) == 64}
 
 
+def _checked_store(descriptor: int, store: Path) -> None:
+    """Refuse a trust store that others could write: one line naming it (a store another user may
+    change would let them make any folder trusted, and so run code as this user)."""
+    status = os.fstat(descriptor)
+    if not stat.S_ISREG(status.st_mode):
+        problem = "not a regular file"
+    elif status.st_uid != os.getuid():
+        problem = f"owned by another user (uid {status.st_uid})"
+    elif status.st_mode & (stat.S_IWGRP | stat.S_IWOTH):
+        problem = f"writable by group or others (mode {stat.S_IMODE(status.st_mode):o}; chmod go-w it)"
+    else:
+        return
+    raise ValueError(f"{store}: the trust store is {problem}, so others could make any folder trusted; refused "
+                     f"(or set {TRUST_STORE_ENV} to a file of your own)")
+
+
+def _open_store(store: Path, flags: int) -> int | None:
+    """A descriptor on the trust store, opened without following a symlink and checked
+    (:func:`_checked_store`); None where it does not exist and ``flags`` do not create it."""
+    try:
+        descriptor = os.open(store, flags | os.O_NOFOLLOW, 0o600)
+    except FileNotFoundError:
+        return None
+    except OSError as error:
+        if store.is_symlink():
+            raise ValueError(f"{store}: the trust store is a symlink, so others could make any folder trusted; "
+                             f"refused (or set {TRUST_STORE_ENV} to a file of your own)") from None
+        raise ValueError(f"{store}: the trust store cannot be opened ({error.strerror})") from None
+    try:
+        _checked_store(descriptor, store)
+    except BaseException:
+        os.close(descriptor)
+        raise
+    return descriptor
+
+
+def _store_text() -> str:
+    """The trust store's text, read through a checked descriptor ('' where there is none)."""
+    store = trust_store()
+    descriptor = _open_store(store, os.O_RDONLY)
+    if descriptor is None:
+        return ""
+    with os.fdopen(descriptor, "rb") as file:
+        return file.read().decode(errors="replace")
+
+
+def _trusted_here(digest: str) -> bool:
+    return digest in {line.strip() for line in _store_text().splitlines()}
+
+
 def record_trusted(folder: str | Path) -> None:
     """Add ``folder``'s manifest to the trust store: its files are this machine's own. One line
     appended in one write, on a line of its own (a crash leaves the store without that line, or
-    with part of it, which matches no manifest)."""
-    digest = manifest_digest(folder)
-    if digest is None:
+    with part of it, which matches no manifest). A manifest that lists nothing is refused
+    (:func:`read_manifest`): it is never recorded."""
+    manifest = read_manifest(folder)
+    if manifest is None:
         raise ValueError(f"{folder}: no {DIGESTS} to record as trusted")
+    digest = manifest[0]
     store = trust_store()
-    if digest in _digests_in(store):
+    text = _store_text()
+    if digest in {line.strip() for line in text.splitlines()}:
         return
     store.parent.mkdir(parents=True, exist_ok=True)
-    cut = store.is_file() and not store.read_bytes().endswith(b"\n") and store.stat().st_size > 0
-    descriptor = os.open(store, os.O_WRONLY | os.O_APPEND | os.O_CREAT, 0o600)
+    cut = bool(text) and not text.endswith("\n")
+    descriptor = _open_store(store, os.O_WRONLY | os.O_APPEND | os.O_CREAT)
     try:
         os.write(descriptor, f"{chr(10) if cut else ''}{digest}\n".encode())  # after a line a crash cut short
         os.fsync(descriptor)
@@ -249,21 +441,29 @@ def record_trusted(folder: str | Path) -> None:
 def publish_manifest(folder: str | Path) -> None:
     """Add ``folder``'s manifest to the published ones (:func:`published_manifests`; commit it with
     the published run: it is then trusted wherever the package is), keeping the list sorted;
-    written atomically."""
-    digest = manifest_digest(folder)
-    if digest is None:
+    written atomically. A manifest that lists nothing is refused."""
+    manifest = read_manifest(folder)
+    if manifest is None:
         raise ValueError(f"{folder}: no {DIGESTS} to publish")
     listed = published_manifests()
     known = _digests_in(listed)
-    if digest not in known:
-        write_atomic(listed, "".join(f"{d}\n" for d in sorted(known | {digest})))
+    if manifest[0] not in known:
+        write_atomic(listed, "".join(f"{d}\n" for d in sorted(known | {manifest[0]})))
+
+
+def _vouched(digest: str) -> bool:
+    """Whether the package publishes the manifest of this SHA-256 or this machine's runs wrote it."""
+    return digest in _digests_in(published_manifests()) or _trusted_here(digest)
 
 
 def is_trusted(folder: str | Path) -> bool:
-    """True when ``folder`` has a manifest that the package publishes or this machine's runs wrote
-    (check its files against it first: :func:`verify_digests`)."""
-    digest = manifest_digest(folder)
-    return digest is not None and (digest in _digests_in(published_manifests()) or digest in _digests_in(trust_store()))
+    """True when ``folder`` has a manifest that lists files and that the package publishes or this
+    machine's runs wrote (its files are checked when they are read: :func:`require_trusted`)."""
+    try:
+        manifest = read_manifest(folder)
+    except ValueError:
+        return False
+    return manifest is not None and _vouched(manifest[0])
 
 
 def trust_everything() -> bool:
@@ -271,13 +471,16 @@ def trust_everything() -> bool:
     return os.environ.get(TRUST_ENV) == "1"
 
 
-def require_trusted(folder: str | Path, trust: bool = False) -> None:
-    """Refuse to unpickle from ``folder`` unless its files are the ones its manifest lists and that
-    manifest is trusted (:func:`is_trusted`), or ``trust`` (or :func:`trust_everything`) says so."""
+def require_trusted(folder: str | Path, trust: bool = False, wanted: Iterable[str] = ()) -> Checked:
+    """The files of ``folder`` to unpickle from, read once and checked (:func:`verify_digests`: a
+    file of ``wanted`` it holds but its manifest does not list is refused unread), when that
+    manifest is trusted (published, or this machine's own) or ``trust`` (or
+    :func:`trust_everything`) says so; UntrustedFolder otherwise. Unpickle from the bytes it
+    returns, never from the folder again."""
     folder = Path(folder)
-    verify_digests(folder)
-    if trust or trust_everything() or is_trusted(folder):
-        return
+    checked = verify_digests(folder, wanted)
+    if trust or trust_everything() or (checked.manifest is not None and _vouched(checked.manifest)):
+        return checked
     raise UntrustedFolder(
         f"{folder}: its pickle files (SB3's model.zip, replay buffers, vecnormalize.pkl) were not written by a run "
         f"on this machine nor shipped with the package, and loading a pickle runs any code it holds; if you trust "
@@ -311,9 +514,9 @@ def recorded_run(folder: str | Path) -> dict:
     config.json says of :data:`IDENTITY`; a run of a newer format is refused by name."""
     folder = Path(folder)
     if (folder / RUN_RECORD).is_file():
-        record = json.loads((folder / RUN_RECORD).read_text())
+        record = json_record(folder / RUN_RECORD)
     elif (folder / "config.json").is_file():
-        config = json.loads((folder / "config.json").read_text())
+        config = json_record(folder / "config.json")
         torch_run = config.get("algo") == "torch-ppo"
         record = {"trainer": "torch-ppo" if torch_run else "sb3", "algo": config.get("algo", "ppo"),
                   "env_id": config.get("env_id"), "seed": config.get("seed"),

@@ -18,7 +18,6 @@ config.json (this Config, the dataset's id and size, the training time) and SHA2
 
 from __future__ import annotations
 
-import json
 import time
 from pathlib import Path
 
@@ -29,8 +28,10 @@ from torch import nn
 from agents.algorithms.bc_config import BCConfig
 from agents.files import (
     POLICY_FILES,
+    WEIGHTS_FILES,
     claim_run_folder,
     exclusive,
+    json_record,
     load_torch,
     save_torch,
     verify_digests,
@@ -56,22 +57,19 @@ def residual_outputs(mapping: ResidualSetpoint, obs: np.ndarray, actions: np.nda
 def transitions(dataset_id: str, config: BCConfig | None = None) -> tuple[np.ndarray, np.ndarray]:
     """(observations, targets) of every step of a Minari dataset: each recorded action (with
     ``config.residual_scale``: its residual output, residual_outputs) with the observation it was
-    taken in."""
-    import minari
+    taken in. The dataset loads without running code (agents.experiments.datasets.load) and an
+    episode with values that are not finite or outside their spaces is refused by name."""
+    from agents.experiments.datasets import checked_episodes, environment, load
 
-    try:
-        dataset = minari.load_dataset(dataset_id)
-    except FileNotFoundError:
-        raise FileNotFoundError(f"no dataset {dataset_id!r} in Minari's data folder; build it with "
-                                f"scara-agents datasets build {dataset_id}") from None
+    dataset = load(dataset_id)  # never runs the entry point the dataset names
+    env = environment(dataset)
     obs, actions = [], []
-    for episode in dataset.iterate_episodes():
+    for episode in checked_episodes(dataset, env):  # no NaN, nothing outside the spaces
         obs.append(episode.observations[:-1])
         actions.append(episode.actions)
     obs, actions = np.concatenate(obs).astype(np.float32), np.concatenate(actions).astype(np.float32)
     if config is not None and config.residual_scale is not None:
-        mapping = ResidualSetpoint(dataset.recover_environment().unwrapped.task, config.residual_scale,
-                                   config.residual_deadzone)
+        mapping = ResidualSetpoint(env.unwrapped.task, config.residual_scale, config.residual_deadzone)
         actions = residual_outputs(mapping, obs, actions)
     return obs, actions
 
@@ -105,15 +103,18 @@ def train(config: BCConfig, overwrite: bool = False, resume: bool = False) -> di
     and keeps no checkpoint: ``resume`` finds a finished run and leaves it, an unfinished one is
     trained again."""
     out = Path(config.out)
+    started = time.perf_counter()
+    finished = resume and (out / "model.pt").exists() and (out / "summary.json").exists()
+    # the dataset is loaded and checked before the folder is made: a refused one leaves nothing behind
+    data = None if finished else transitions(config.dataset, config)
     with exclusive(out):
         claim_run_folder(out, run_record(config), resume, overwrite)
         if resume and (out / "model.pt").exists() and (out / "summary.json").exists():
-            return json.loads((out / "config.json").read_text())
-        started = time.perf_counter()
+            return json_record(out / "config.json")
         if config.torch_threads:
             torch.set_num_threads(config.torch_threads)
         torch.manual_seed(config.seed)
-        obs, actions = transitions(config.dataset, config)
+        obs, actions = data if data is not None else transitions(config.dataset, config)
         actor = Actor(obs.shape[1], actions.shape[1], config.hidden_size, config.layers)
         actor.mean.copy_(torch.as_tensor(obs.mean(0)))
         actor.scale.copy_(torch.as_tensor(obs.std(0) + 1e-6))
@@ -145,16 +146,20 @@ class BCPolicy:
         run_dir = Path(run_dir)
         if not (run_dir / "model.pt").exists():
             raise FileNotFoundError(f"no model.pt in {str(run_dir)!r}: give a folder written by agents.algorithms.bc")
-        verify_digests(run_dir)
+        checked = verify_digests(run_dir, WEIGHTS_FILES)  # read once: what loads is what was checked
+        record = checked.json("config.json")
+        if record.get("algo") != "bc":
+            other = " (a torch PPO run: torchppo:DIR)" if record.get("algo") == "torch-ppo" else ""
+            raise ValueError(f"{run_dir}: not a behaviour-cloning run (its config.json says algo "
+                             f"{record.get('algo')!r}){other}")
         if env.unwrapped.control_mode != "pd":
             raise ValueError(f"{run_dir} clones 'pd' mode actions, the environment is in "
                              f"{env.unwrapped.control_mode!r} mode")
-        saved = load_torch(run_dir / "model.pt")
+        saved = load_torch(run_dir / "model.pt", data=checked.bytes("model.pt"))
         self.actor = Actor(saved["obs_size"], saved["action_size"], saved["hidden_size"], saved["layers"])
         self.actor.load_state_dict(saved["state_dict"])
         self.actor.eval()
-        config = BCConfig(**{k: v for k, v in json.loads((run_dir / "config.json").read_text()).items()
-                             if k in BCConfig.__dataclass_fields__})
+        config = BCConfig(**{k: v for k, v in record.items() if k in BCConfig.__dataclass_fields__})
         self.mapping = None if config.residual_scale is None else \
             ResidualSetpoint(env.unwrapped.task, config.residual_scale, config.residual_deadzone)
         self.name = f"bc ({run_dir.name})"

@@ -6,6 +6,7 @@ from __future__ import annotations
 import dataclasses
 from dataclasses import dataclass
 
+from agents.algorithms.torch_ppo_config import SEED_MAX
 from scara_gym.model import checks
 
 
@@ -28,8 +29,8 @@ class BCConfig:
     def __post_init__(self) -> None:
         if not isinstance(self.dataset, str) or not self.dataset:
             raise ValueError(f"dataset must be a Minari dataset id, got {self.dataset!r}")
-        for name in ("seed", "torch_threads"):
-            checks.integer(name, getattr(self, name), 0, None)
+        checks.integer("seed", self.seed, 0, SEED_MAX)
+        checks.integer("torch_threads", self.torch_threads, 0, None)
         for name in ("hidden_size", "layers", "batch_size", "steps"):
             checks.integer(name, getattr(self, name), 1, None)
         checks.real("learning_rate", self.learning_rate, 0.0, 1.0, low_open=True)

@@ -20,7 +20,6 @@ TensorBoard logs under ``tb/``.
 
 from __future__ import annotations
 
-import json
 import time
 from pathlib import Path
 
@@ -33,6 +32,7 @@ from agents.algorithms.torch_ppo_config import Config
 from agents.algorithms.torch_ppo_hooks import Hook, hooks_for
 from agents.files import (
     POLICY_FILES,
+    WEIGHTS_FILES,
     claim_run_folder,
     exclusive,
     load_torch,
@@ -263,6 +263,13 @@ def train(config: Config, resume: bool = False, hooks: list[Hook] | None = None,
     hooks: the research add-ons the loop calls (default: those config's add-on fields ask for,
     agents.algorithms.torch_ppo_hooks.hooks_for)."""
     out = Path(config.out)
+    if config.device == "cuda":  # a machine without the GPU is told so before the run folder is made
+        from scara_gym.envs.cuda_vector import load_backend
+
+        try:
+            load_backend()
+        except (ImportError, RuntimeError) as error:
+            raise ValueError(str(error)) from None
     with exclusive(out):
         claim_run_folder(out, run_record(config), resume, overwrite)
         return _train(config, resume, hooks)
@@ -464,8 +471,8 @@ def load_weights(agent: Agent, run_dir: Path) -> None:
     (Config.init_from); the optimizer and the reward scale start afresh."""
     if not (run_dir / "model.pt").exists():
         raise FileNotFoundError(f"init_from: no model.pt in {str(run_dir)!r}; give a folder written by scara-agents torch-ppo")
-    verify_digests(run_dir)
-    saved = load_torch(run_dir / "model.pt")
+    checked = verify_digests(run_dir, WEIGHTS_FILES)  # read once: what loads is what was checked
+    saved = load_torch(run_dir / "model.pt", data=checked.bytes("model.pt"))
     mine = (agent.obs_rms.mean.shape[0], agent.actor_logstd.shape[0], agent.weights[0].shape[-1])
     theirs = (saved["obs_size"], saved["action_size"], saved["hidden_size"])
     if mine != theirs:
@@ -481,13 +488,13 @@ class TorchPPOPolicy:
         run_dir = Path(run_dir)
         if not (run_dir / "model.pt").exists():
             raise FileNotFoundError(f"no model.pt in {str(run_dir)!r}: give a folder written by scara-agents torch-ppo")
-        verify_digests(run_dir)
-        run_config = Config.from_dict(json.loads((run_dir / "config.json").read_text()))
+        checked = verify_digests(run_dir, WEIGHTS_FILES)  # read once: what loads is what was checked
+        run_config = Config.from_dict(checked.json("config.json"))
         unwrapped = env.unwrapped
         if run_config.control_mode != unwrapped.control_mode:
             raise ValueError(f"{run_dir} was trained in {run_config.control_mode!r} mode, "
                              f"the environment is in {unwrapped.control_mode!r} mode")
-        saved = load_torch(run_dir / "model.pt")
+        saved = load_torch(run_dir / "model.pt", data=checked.bytes("model.pt"))
         self.agent = Agent(saved["obs_size"], saved["action_size"], saved["hidden_size"], saved["clip_obs"])
         self.agent.load_state_dict(saved["state_dict"])
         self.agent.eval()

@@ -8,10 +8,13 @@ from dataclasses import dataclass, field
 
 from scara_gym.benchmark.protocol import ENV_ID
 from scara_gym.envs.randomization import PRESETS
+from scara_gym.envs.task import MAX_ROBOTS
 from scara_gym.model import checks
 from scara_gym.registration import ENV_IDS
 
 INF = float("inf")
+SEED_MAX = 2**32 - 1
+"""the largest seed a run takes (torch's, numpy's and the vector env's seeding, seed + robot, stay in range)"""
 
 
 @dataclass
@@ -77,7 +80,7 @@ class Config:
         if self.residual_scale is not None:
             self.residual_scale = tuple(float(x) for x in checks.real_array(
                 "residual_scale", self.residual_scale, (3,), low=1e-12, high=1e6, range_text="every entry > 0"))
-        for name, low, high in (("seed", 0, None), ("num_envs", 1, None), ("num_steps", 1, None),
+        for name, low, high in (("seed", 0, SEED_MAX), ("num_envs", 1, MAX_ROBOTS), ("num_steps", 1, None),
                                 ("total_timesteps", 1, None), ("num_minibatches", 1, None), ("update_epochs", 1, None),
                                 ("hidden_size", 1, None), ("env_threads", 1, None), ("torch_threads", 0, None),
                                 ("checkpoint_every", 1, None), ("demo_bc_pretrain", 0, None)):

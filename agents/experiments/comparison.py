@@ -3,7 +3,7 @@
 Every policy runs the same episodes of every condition of the evaluation protocol
 (:mod:`scara_gym.benchmark.protocol`: the C11 episode, perturbed starts, randomized targets,
 drawn and fixed parameter shifts, sensor noise, actuation delay, a rate limit), on
-``TRAINING_ENV_ID``, each condition on its own evaluation seeds:
+the protocol's one id (``protocol.ENV_ID``, the latest), each condition on its own evaluation seeds:
 
 - policies: ``pd`` (the classical baseline); the seed's ``dec`` heuristic in both variants at its
   trigger distance tuned once on the tuning set and at 1.2 times it
@@ -26,7 +26,6 @@ agents.experiments.report's; the acceptance targets are agents.experiments.targe
 from __future__ import annotations
 
 import hashlib
-import json
 import time
 from pathlib import Path
 
@@ -40,6 +39,7 @@ from agents.experiments.evaluation import (
 from agents.experiments.registry import RUNS, tagged
 from agents.experiments.statistics import entry, probability_faster, rate_text, time_scores, training_seconds
 from agents.experiments.tuning import tune_heuristic
+from agents.files import json_record
 from agents.policies import (
     DecHeuristic,
     PDPolicy,
@@ -212,7 +212,7 @@ class _ConditionTable:
         """Every learned run's seeds (and behind the shield where ``shielded`` names it); shields:
         which of the two evaluations (without, behind the shield) to make."""
         for (algorithm, mode), run_dirs in sorted(groups.items()):
-            configs = [json.loads((d / "config.json").read_text()) for d in run_dirs]
+            configs = [json_record(d / "config.json") for d in run_dirs]
             tags = RUNS[algorithm].tags if algorithm in RUNS else frozenset()
             for shield in [s for s in ((False, True) if algorithm in shielded else (False,)) if s in shields]:
                 runs = [learned_episodes(d, self.condition, mode, self.episodes, cache, shield) for d in run_dirs]

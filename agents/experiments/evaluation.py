@@ -15,13 +15,14 @@ from __future__ import annotations
 import dataclasses
 import hashlib
 import json
+import sys
 from pathlib import Path
 
 import numpy as np
 
 from agents.algorithms.sb3.policy import PPOPolicy, SB3Policy
 from agents.experiments.runs import is_finished
-from agents.files import POLICY_FILES, load_arrays, save_arrays
+from agents.files import POLICY_FILES, json_record, load_arrays, save_arrays
 from agents.policies import DecHeuristic, PDPolicy, mpc as mpc_module
 from agents.policies.mpc import MPCConfig, MPCPolicy, solve_time_summary
 from agents.policies.optimal import OptimalPolicy
@@ -113,11 +114,48 @@ def learned_episodes(run_dir: Path, condition: Condition, mode: str, episodes: i
     return _kept(Path(cache) / f"{evaluation_key(run_dir, condition, mode, episodes, shield)}.npz", run)
 
 
+ENTRY_KINDS = {"success": "b", "collisions": "b", "collision_counts": "iu", "reach_time": "f", "energy": "f",
+               "peak_current_fraction": "f", "return": "f", "seeds": "iu"}
+"""the per-episode arrays every kept evaluation holds, with the numpy kinds they may have"""
+
+
+def entry_problem(arrays: dict[str, np.ndarray]) -> str | None:
+    """What makes ``arrays`` no evaluation this package kept (None: nothing): a per-episode array
+    missing, of another kind or length, a value that is not finite (reach_time: NaN exactly where
+    the episode did not succeed), no trace, or any array that is not numbers."""
+    missing = sorted(set(ENTRY_KINDS) - set(arrays))
+    if missing:
+        return f"no {missing}"
+    episodes = len(arrays["seeds"])
+    for key, kinds in ENTRY_KINDS.items():
+        if arrays[key].dtype.kind not in kinds or arrays[key].shape != (episodes,):
+            return f"{key} is not {episodes} values of kind {kinds!r}"
+    if any(a.dtype.kind not in "biuf" for a in arrays.values()):
+        return "an array that is not numbers"
+    finite = {k: np.isfinite(a).all() for k, a in arrays.items() if a.dtype.kind == "f" and k != "reach_time"}
+    if not all(finite.values()):
+        return f"{sorted(k for k, ok in finite.items() if not ok)} hold values that are not finite"
+    if not np.array_equal(np.isfinite(arrays["reach_time"]), arrays["success"]):
+        return "reach_time is not finite exactly where the episode succeeded"
+    if "traces_0" not in arrays:
+        return "no trace"
+    return None
+
+
 def _kept(path: Path, run) -> dict:
     """The evaluation kept at ``path``, else ``run()``'s, kept there whole or not at all (a
-    stopped comparison leaves no half entry)."""
+    stopped comparison leaves no half entry). An entry that is not one this package kept
+    (truncated, keys missing, text or values that are not finite: :func:`entry_problem`) is
+    evaluated again and replaced, with a line on stderr saying why."""
     if path.exists():
-        return _from_arrays(load_arrays(path))
+        try:
+            arrays = load_arrays(path)
+            problem = entry_problem(arrays)
+        except ValueError as error:
+            problem = str(error)
+        if problem is None:
+            return _from_arrays(arrays)
+        print(f"{path}: not a kept evaluation ({problem}); evaluated again", file=sys.stderr, flush=True)
     result = run()
     save_arrays(path, _to_arrays(result))
     return result
@@ -193,7 +231,7 @@ def learned_policy(env, run_dir: Path, shield: bool = False):
     ``shield``, behind scara_gym.wrappers.Shield (its model has the nominal parameters)."""
     if (Path(run_dir) / "model.zip").exists():
         policy = SB3Policy(env, run_dir)
-    elif json.loads((Path(run_dir) / "config.json").read_text()).get("algo") == "bc":
+    elif json_record(Path(run_dir) / "config.json").get("algo") == "bc":
         from agents.algorithms.bc import BCPolicy
 
         policy = BCPolicy(env, run_dir)

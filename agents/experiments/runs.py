@@ -13,7 +13,6 @@ trained them.
 
 from __future__ import annotations
 
-import json
 import shutil
 import time
 from pathlib import Path
@@ -29,9 +28,11 @@ from agents.files import (
     RunLocked,
     claim_run_folder,
     exclusive,
+    json_record,
     publish_manifest,
     require_trusted,
     verify_digests,
+    write_atomic,
     write_digests,
     write_json,
 )
@@ -63,12 +64,13 @@ def publish(run: Path, dest: Path) -> Path:
     run, dest = Path(run), Path(dest)
     if not is_finished(run):
         raise ValueError(f"{run} is not a finished run (no config.json with model.zip or model.pt)")
-    if any((run / name).exists() for name in PICKLE_FILES):
-        require_trusted(run)
-    else:
-        verify_digests(run)
+    # read once and checked: what is published is what was checked (pickle: only from a trusted folder)
+    check = require_trusted if any((run / name).exists() for name in PICKLE_FILES) else verify_digests
+    checked = check(run, wanted=POLICY_FILES)
     for name in PUBLISHED:
-        if (run / name).exists():
+        if name in POLICY_FILES and name in checked:
+            write_atomic(dest / name, checked.bytes(name))
+        elif name not in POLICY_FILES and (run / name).exists():
             (dest / name).parent.mkdir(parents=True, exist_ok=True)
             shutil.copy2(run / name, dest / name)
     write_digests(dest, POLICY_FILES)
@@ -145,8 +147,8 @@ def _train_torch_ppo(run: RunSpec, out: Path, seed: int, env_id: str, control_mo
             train_run(run.base, base, seed, env_id, control_mode, total_timesteps, resume=True)
         train(config, resume=resume, overwrite=overwrite)
         if base is not None:
-            record = json.loads((out / "config.json").read_text())
-            record["base_train_seconds"] = json.loads((base / "config.json").read_text())["train_seconds"]
+            record = json_record(out / "config.json")
+            record["base_train_seconds"] = json_record(base / "config.json")["train_seconds"]
             write_json(out / "config.json", record)
             write_digests(out, POLICY_FILES)
     return out
@@ -179,7 +181,7 @@ def campaign(names: list[str], seeds: list[int], runs: Path, env_id: str = ENV_I
         except RunLocked:
             print(f"{name} seed {seed}: trained by another process, passed over", flush=True)
             continue
-        config = json.loads((out / "config.json").read_text())
+        config = json_record(out / "config.json")
         print(f"{name} seed {seed}: {out} ({config['train_seconds']:.0f} s of training, "
               f"{time.perf_counter() - started:.0f} s in this call)", flush=True)
         done.append(out)

@@ -40,7 +40,7 @@ from agents.experiments.registry import spec
 from agents.experiments.report import condition_tables
 from agents.experiments.runs import hyperparams_of, is_finished, publish, run_dir, train_run
 from agents.experiments.statistics import entry
-from agents.files import save_arrays
+from agents.files import json_record, save_arrays
 from scara_gym.benchmark.protocol import evaluate, get_condition, tuning
 
 
@@ -107,7 +107,7 @@ def train_and_evaluate(algo: str, env_id: str, control_mode: str, seed: int, ove
     hyper = point_hyperparams(algo, env_id, control_mode, overrides)
     train_run(algo, out, seed, env_id, control_mode, total_timesteps, hyperparams=hyper, resume=True)
     task = task_kwargs(hyper)
-    result = {"train_seconds": json.loads((out / "config.json").read_text())["train_seconds"]}
+    result = {"train_seconds": json_record(out / "config.json")["train_seconds"]}
     tuning_set = tuning(condition)  # a sweep chooses: it never sees an evaluation seed
     for prefix, kwargs in (("", task), ("benchmark_", {})) if task else (("", {}),):
         runs = evaluate(tuning_set, lambda env: learned_policy(env, out), control_mode, episodes, env_id,

@@ -4,7 +4,7 @@ The rule for the ``dec`` heuristic's trigger distance: the smallest distance (bi
 [0, 0.4] m to ``TOLERANCE``) at which the heuristic reaches the target without a collision in
 the nominal C11 episode and in the first ``TUNING_EPISODES`` episodes of c11-starts' tuning set
 (``scara_gym.benchmark.protocol.tuning``: its start distribution on tuning seeds), "pd" mode,
-on TRAINING_ENV_ID. The comparison lists the heuristic at that distance and at ``MARGIN`` times
+on the protocol's id (``protocol.ENV_ID``). The comparison lists the heuristic at that distance and at ``MARGIN`` times
 it, in every condition: never re-tuned on a condition it is scored on.
 
 The shield's margins are its documented defaults (scara_gym.wrappers.Shield), not tuned here.

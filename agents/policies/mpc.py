@@ -117,6 +117,8 @@ class MPCConfig:
         checks.integer("max_iter", self.max_iter, 1, 100_000)
         checks.choice("solver", self.solver, ("ipopt",))
         checks.integer("first_passes", self.first_passes, 1, 100)
+        if not isinstance(self.solver_options, dict):
+            raise TypeError(f"solver_options must be a dict of CasADi solver options, got {self.solver_options!r}")
         if self.params is not None and not isinstance(self.params, ScaraParams):
             raise TypeError(f"params must be a ScaraParams or None, got {type(self.params).__name__}")
 
@@ -127,6 +129,8 @@ class MPCPolicy:
     name = "mpc"
 
     def __init__(self, env, config: MPCConfig | None = None) -> None:
+        if config is not None and not isinstance(config, MPCConfig):
+            raise TypeError(f"config must be an MPCConfig or None, got {config!r}")
         self.env = env.unwrapped
         self.mode = self.env.control_mode
         self.config = config = MPCConfig() if config is None else config

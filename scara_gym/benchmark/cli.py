@@ -35,6 +35,8 @@ def main(argv: list[str] | None = None) -> int:
     elif args.command == "accuracy":
         if args.episodes < 1:
             parser.error(f"--episodes must be >= 1, got {args.episodes}")
+        if args.seed < 0:
+            parser.error(f"--seed must be >= 0, got {args.seed}")
         from scara_gym.model import checks
         for name in ("rtol", "atol"):
             try:

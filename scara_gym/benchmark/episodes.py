@@ -1,7 +1,8 @@
 """The one evaluation loop: a policy's episode in an environment, summarized (and traced), and
 a policy's episodes as per-episode arrays.
 
-A policy is anything with ``reset()`` and ``__call__(obs) -> action`` (``agents.policies.Policy``).
+A policy is a callable obs -> action; its ``reset()`` is called before each episode where it has one
+(``agents.policies.Policy``).
 """
 
 from __future__ import annotations
@@ -24,7 +25,8 @@ def _trace_row(obs) -> tuple:
 def run_episode(env, policy, seed: int | None = None, options: dict | None = None, record: bool = False):
     """One episode; returns a summary dict (and the per-step trace if record)."""
     obs, _ = env.reset(seed=seed, options=options)
-    policy.reset()
+    if callable(getattr(policy, "reset", None)):  # a plain function has no episode state to reset
+        policy.reset()
     unwrapped = env.unwrapped
     # measured on the true flat observation: the same for noisy and goal-conditioned envs
     state = unwrapped.task.obs[0]

@@ -181,6 +181,8 @@ def tuning(name: str, episodes: int | None = None) -> Condition:
     Returns:
         A Condition on the seeds 10^8 + the condition's band, for choosing a policy's parameters."""
     base = get_condition(name)
+    if episodes is not None:
+        checks.integer("episodes", episodes, 1, SEED_BAND)
     index = (base.seed - EVALUATION_SEED) // SEED_BAND
     return dataclasses.replace(base, name=f"{base.name} (tuning)", seed=TUNING_SEED + index * SEED_BAND,
                                episodes=base.episodes if episodes is None else episodes)
@@ -233,6 +235,9 @@ def evaluate(condition: Condition | str, policy_factory: Callable, control_mode:
         Per-episode arrays (success, collisions, reach_time, energy, ...; see
         scara_gym.benchmark.episodes) and "condition", the condition's name."""
     condition = get_condition(condition)
+    checks.integer("record", record, 0)
+    if env_kwargs is not None and not isinstance(env_kwargs, Mapping):
+        raise TypeError(f"env_kwargs must be a mapping of environment arguments or None, got {env_kwargs!r}")
     env = condition.make_env(control_mode, env_id, **(env_kwargs or {}))
     seeds = condition.seeds(episodes)
     result = run_episodes(env, policy_factory(env), seeds, [condition.options(s) for s in seeds],

@@ -57,7 +57,10 @@ def _costs(info, batch: int | None) -> np.ndarray | float:
 
 
 def _goals(achieved_goal, desired_goal) -> tuple[np.ndarray, np.ndarray]:
-    """The goals as float64 arrays, checked: numbers of one shape (..., 3) [rad, rad, m], finite."""
+    """The goals as float64 arrays, checked: real numbers of one shape (..., 3) [rad, rad, m], finite."""
+    if np.iscomplexobj(achieved_goal) or np.iscomplexobj(desired_goal):  # a cast would drop the imaginary part
+        raise ValueError("achieved_goal and desired_goal must be arrays of real numbers of shape (..., 3) "
+                         "[rad, rad, m], got complex ones")
     try:
         achieved = np.asarray(achieved_goal, dtype=np.float64)
         desired = np.asarray(desired_goal, dtype=np.float64)

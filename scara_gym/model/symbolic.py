@@ -43,6 +43,7 @@ from typing import Any
 
 import numpy as np
 
+from scara_gym.model import checks
 from scara_gym.model.params import DEFAULT_PARAMS, ScaraParams
 from scara_gym.model.records import CURRENT, ENERGY, N_EVENTS, N_STATE, RATE, Q
 
@@ -107,6 +108,7 @@ def symbolic_model(params: ScaraParams = DEFAULT_PARAMS, *, control: str = "volt
         raise TypeError(f"params must be a ScaraParams, got {type(params).__name__}")
     if control not in CONTROLS:
         raise ValueError(f"control must be one of {CONTROLS}, got {control!r}")
+    widen, exact_switches = checks.flag("widen", widen), checks.flag("exact_switches", exact_switches)
     if critical_rule not in CRITICAL_RULES:
         raise ValueError(f"critical_rule must be one of {CRITICAL_RULES}, got {critical_rule!r}")
     p = _values(params)

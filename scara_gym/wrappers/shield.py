@@ -269,6 +269,9 @@ class Shield:
         return task.setpoint_action(task.obs[index].astype(np.float64), setpoint, index), True
 
     def __call__(self, obs: np.ndarray) -> np.ndarray:
+        if self.policy is None:
+            raise ValueError("Shield: no policy to shield (policy=None is for filter(), shielded training); give "
+                             "Shield(env, policy) a policy to call it")
         action, replaced = self.filter(self.env.task, 0, self.policy(obs))
         self.interventions += replaced
         return action

@@ -56,3 +56,26 @@ def test_checkpoints_from_another_machine_are_refused_before_any_loads(run_with_
     monkeypatch.setenv(files.TRUST_STORE_ENV, str(tmp_path / "another-machine"))
     with pytest.raises(files.UntrustedFolder, match="checkpoints: its pickle files"):
         checkpoints.evaluate_checkpoints(run_with_checkpoints, episodes=1)
+
+
+def test_a_checkpoint_added_after_the_manifest_is_never_loaded(run_with_checkpoints, tmp_path):
+    """A trusted checkpoints folder is trusted for the files its manifest lists, not for a pair
+    of files added beside them later."""
+    import os
+    import pickle
+    import shutil
+
+    from agents import files
+
+    class Payload:
+        def __reduce__(self):
+            return (os.system, (f"touch {tmp_path / 'ran'}",))
+
+    run = tmp_path / "run"
+    shutil.copytree(run_with_checkpoints, run)  # the same manifests: trusted as this machine's own
+    shutil.copy(next(run.glob("checkpoints/ppo_[0-9]*_steps.zip")), run / "checkpoints" / "ppo_1_steps.zip")
+    (run / "checkpoints" / "ppo_vecnormalize_1_steps.pkl").write_bytes(pickle.dumps(Payload()))
+    with pytest.raises(ValueError, match=r"ppo_(1|vecnormalize_1)_steps\.(zip|pkl): not listed in .*SHA256SUMS"):
+        checkpoints.evaluate_checkpoints(run, episodes=1)
+    assert not (tmp_path / "ran").exists()
+    assert files.manifest_digest(run / "checkpoints") == files.manifest_digest(run_with_checkpoints / "checkpoints")

@@ -26,7 +26,9 @@ MISTAKES = [
     (["evaluate", "--episodes", "0"], "--episodes must be >= 1"),
     (["evaluate", "--episodes", "-3"], "--episodes must be >= 1"),
     (["evaluate", "--episodes", "many"], "--episodes: invalid int value"),
-    (["evaluate", "--seed", "-1"], "--seed must be an integer >= 0"),
+    (["evaluate", "--seed", "-1"], r"--seed must be an integer in \[0, 4294967295\]"),
+    (["evaluate", "--seed", "99999999999999999999999"], r"--seed must be an integer in \[0, 4294967295\]"),
+    (["evaluate", "--out", ""], "argument --out: an empty path; give a folder"),
     (["evaluate", "--seed", "1.5"], "--seed: invalid int value"),
     (["evaluate", "--env-id", "Scara-C11-v9"], "--env-id: invalid choice"),
     (["evaluate", "--control-mode", "current"], "--control-mode: invalid choice"),
@@ -64,7 +66,9 @@ MISTAKES = [
     (["train", "torch-ppo", "--set", "anneal_lr=maybe"], "--anneal-lr takes true or false"),
     (["train", "torch-ppo", "--total-timesteps", "0"], "--total-timesteps must be >= 1"),
     (["train", "torch-ppo", "--total-timesteps", "-1"], "--total-timesteps must be >= 1"),
-    (["train", "torch-ppo", "--seed", "-1"], "--seed must be an integer >= 0"),
+    (["train", "torch-ppo", "--seed", "-1"], r"--seed must be an integer in \[0, 4294967295\]"),
+    (["train", "torch-ppo", "--set", "env_id=Scara-C11-v0"], "--set env_id: give it as --env-id"),
+    (["train", "bc-c11-expert", "--set", "seed=3"], "--set seed: give it as --seed"),
     (["train", "torch-ppo", "--env-id", "nope"], "--env-id: invalid choice"),
     (["train", "sac", "--randomize-target"], "--randomize-target is for the ppo-residual runs"),
     (["train", "sac", "--set", "learning_rate=nan"], "learning_rate must be"),
@@ -79,7 +83,7 @@ MISTAKES = [
     (["train", "ppo", "--set", "clip_range=0"], "clip_range must be"),
     (["train", "td3", "--set", "noise_std=-1"], "noise_std must be"),
     (["train", "td3", "--set", "learning_starts=-5"], "learning_starts must be an integer >= 0"),
-    (["train", "ppo-residual", "--set", "n_envs=0"], "n_envs must be an integer >= 1"),
+    (["train", "ppo-residual", "--set", "n_envs=0"], r"n_envs must be an integer in \[1, "),
     (["train", "sac", "--total-timesteps", "0"], "--total-timesteps must be >= 1"),
     # torch-ppo
     (["torch-ppo", "--num-steps", "0"], "num_steps must be an integer >= 1"),
@@ -90,7 +94,7 @@ MISTAKES = [
     (["torch-ppo", "--gamma", "2"], "gamma must be"),
     (["torch-ppo", "--gae-lambda", "0"], "gae_lambda must be"),
     (["torch-ppo", "--hidden-size", "0"], "hidden_size must be an integer >= 1"),
-    (["torch-ppo", "--num-envs", "0"], "num_envs must be an integer >= 1"),
+    (["torch-ppo", "--num-envs", "0"], r"num_envs must be an integer in \[1, "),
     (["torch-ppo", "--num-minibatches", "3"], "num_minibatches must divide"),
     (["torch-ppo", "--num-minibatches", "0"], "num_minibatches must be an integer >= 1"),
     (["torch-ppo", "--total-timesteps", "-1"], "total_timesteps must be an integer >= 1"),
@@ -102,7 +106,9 @@ MISTAKES = [
     (["torch-ppo", "--residual-scale", "a,b,c"], "residual_scale: expected 3 numbers"),
     (["torch-ppo", "--residual-scale", "1,-2,3"], "residual_scale must be"),
     (["torch-ppo", "--reward-weights", "time"], "reward_weights: expected name=number"),
-    (["torch-ppo", "--seed", "-1"], "seed must be an integer >= 0"),
+    (["torch-ppo", "--seed", "-1"], r"seed must be an integer in \[0, 4294967295\]"),
+    (["torch-ppo", "--seed", str(2**64)], r"seed must be an integer in \[0, 4294967295\]"),
+    (["torch-ppo", "--device", "cuda", "--out", "gpu-run"], "device='cuda'"),
     (["torch-ppo", "--clip-obs", "0"], "clip_obs must be"),
     (["torch-ppo", "--max-grad-norm", "0"], "max_grad_norm must be"),
     (["torch-ppo", "--ent-coef", "-0.1"], "ent_coef must be"),
@@ -119,7 +125,8 @@ MISTAKES = [
     (["train", "sac", "--resume", "--overwrite"], "--resume and --overwrite exclude each other"),
     # campaign
     (["campaign", "no-such-run"], "no registered run 'no-such-run'"),
-    (["campaign", "--seeds", "-1"], "--seeds must be integers >= 0"),
+    (["campaign", "--seeds", "-1"], r"--seeds must be integers in \[0, 4294967295\]"),
+    (["campaign", "--publish", "x", "--runs", "/nonexistent"], "--runs: no folder '/nonexistent' to publish from"),
     (["campaign", "--seeds", "a"], "--seeds: invalid int value"),
     (["campaign", "--total-timesteps", "0"], "--total-timesteps must be >= 1"),
     (["campaign", "--shard", "2/2"], "--shard must be K/N"),
@@ -127,6 +134,7 @@ MISTAKES = [
     (["campaign", "--env-id", "nope"], "--env-id: invalid choice"),
     # compare
     (["compare", "--runs", "/nonexistent"], "--runs: no folder"),
+    (["compare", "--shield", "nosuch"], r"--shield names \['nosuch'\], which are not registered runs"),
     (["compare", "--episodes", "0"], "--episodes must be >= 1"),
     (["compare", "--jobs", "0"], "--jobs must be >= 1"),
     (["compare", "--conditions", "c12"], "--conditions: invalid choice"),
@@ -139,6 +147,7 @@ MISTAKES = [
     (["sweep", "--run", "ppo", "--episodes", "0"], "--episodes must be >= 1"),
     (["sweep", "--run", "ppo", "--cpus-per-trial", "-1"], "--cpus-per-trial must be"),
     (["sweep", "--run", "ppo", "--seeds", "-1"], "--seeds must be"),
+    (["train", "ppo", "--seed", str(2**40)], r"--seed must be an integer in \[0, 4294967295\]"),
     (["sweep", "--run", "ppo", "--total-timesteps", "0"], "--total-timesteps must be"),
     (["sweep", "--run", "ppo", "--max-concurrent", "0"], "--max-concurrent must be"),
     (["sweep", "--run", "torch-ppo", "--grid", "learning_rate=nan"], "learning_rate must be"),
@@ -149,6 +158,7 @@ MISTAKES = [
     (["select"], "the following arguments are required"),
     # optimal
     (["optimal", "--wall-margin", "0.5"], "--wall-margin must be in"),
+    (["optimal", "--write", "."], r"argument --write: \. is a folder, not a file"),
     (["optimal", "--wall-margin", "-1"], "--wall-margin must be in"),
     (["optimal", "--condition", "c11-starts"], "--condition: invalid choice"),
     (["optimal", "--start", "1", "2"], "--start: expected 3 arguments"),
@@ -168,15 +178,72 @@ def test_the_catalogue_covers_every_subcommand_with_over_a_hundred_mistakes():
     assert set(subcommands) <= commands and len(MISTAKES) >= 100
 
 
-@pytest.mark.parametrize("argv, says", MISTAKES, ids=[" ".join(a) or "(nothing)" for a, _ in MISTAKES])
-def test_a_mistake_ends_at_once_in_one_line_with_status_2(argv, says, capsys, tmp_path, monkeypatch):
-    monkeypatch.chdir(tmp_path)
-    started = time.perf_counter()
+def _refused_in_one_line(argv, says, capsys) -> None:
+    """``run(argv)`` exits with status 2 and one line on stderr, no traceback, that matches ``says``."""
     with pytest.raises(SystemExit) as exit_:
         run(argv)
     assert exit_.value.code == 2
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1 and "error:" in err and "Traceback" not in err, err
     assert re.search(says, err), err
+
+
+FILE_MISTAKES = [
+    # a folder argument that names an existing file, and files that hold the wrong JSON
+    (["evaluate", "--out", "FILE"], "argument --out: FILE is a file, not a folder"),
+    (["train", "torch-ppo", "--out", "FILE"], "argument --out: FILE is a file, not a folder"),
+    (["torch-ppo", "--out", "FILE"], "--out: FILE is a file, not a folder"),
+    (["compare", "--out", "FILE"], "argument --out: FILE is a file"),
+    (["compare", "--cache", "FILE"], "argument --cache: FILE is a file"),
+    (["compare", "--runs", "FILE"], "argument --runs: FILE is a file"),
+    (["campaign", "--runs", "FILE"], "argument --runs: FILE is a file"),
+    (["campaign", "--publish", "FILE", "--runs", "RUN"], "argument --publish: FILE is a file"),
+    (["curves", "--cache", "FILE"], "argument --cache: FILE is a file"),
+    (["sweep", "--run", "ppo", "--out", "FILE"], "argument --out: FILE is a file"),
+    (["select", "RUN", "--out", "FILE"], "argument --out: FILE is a file"),
+    (["datasets", "build", "scara/c11/random-v0", "--out", "FILE"], "argument --out: FILE is a file"),
+    (["torch-ppo", "--total-timesteps", "16", "--out", "RUN"], r"RUN/config\.json: holds a JSON list, not the object"),
+    (["evaluate", "--policies", "bc:RUN"], r"RUN/config\.json: holds a JSON list"),
+    (["evaluate", "--policies", "bc:TORCH"], r"TORCH: not a behaviour-cloning run .*torchppo:DIR"),
+    (["evaluate", "--policies", "bc:BROKEN"], r"BROKEN/config\.json: not JSON"),
+    (["torch-ppo", "--total-timesteps", "16", "--out", "BROKEN"], r"BROKEN/config\.json: not JSON"),
+]
+"""as MISTAKES, in a working folder that holds FILE (a file), RUN (a folder with a config.json of [],
+a summary.json and a model.pt), TORCH (a torch PPO run's config.json and a model.pt) and BROKEN (a
+config.json cut short and a model.pt): each is refused in one line and the folder is left as it was"""
+
+
+@pytest.mark.parametrize("argv, says", FILE_MISTAKES, ids=[" ".join(a) for a, _ in FILE_MISTAKES])
+def test_a_path_of_the_wrong_kind_is_refused_in_one_line_and_nothing_changes(argv, says, capsys, tmp_path,
+                                                                             monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "FILE").write_text("a file\n")
+    (tmp_path / "RUN").mkdir()
+    (tmp_path / "RUN" / "config.json").write_text("[]")
+    (tmp_path / "RUN" / "summary.json").write_text("{}")
+    (tmp_path / "RUN" / "model.pt").write_bytes(b"")
+    (tmp_path / "TORCH").mkdir()
+    (tmp_path / "TORCH" / "config.json").write_text('{"algo": "torch-ppo"}')
+    (tmp_path / "TORCH" / "model.pt").write_bytes(b"")
+    (tmp_path / "BROKEN").mkdir()
+    (tmp_path / "BROKEN" / "config.json").write_text('{"algo": "bc", ')
+    (tmp_path / "BROKEN" / "model.pt").write_bytes(b"")
+    before = sorted(str(p.relative_to(tmp_path)) for p in tmp_path.rglob("*"))
+    _refused_in_one_line(argv, says, capsys)
+    assert sorted(str(p.relative_to(tmp_path)) for p in tmp_path.rglob("*")) == before  # nothing left behind
+
+
+@pytest.mark.parametrize("argv, says", MISTAKES, ids=[" ".join(a) or "(nothing)" for a, _ in MISTAKES])
+def test_a_mistake_ends_at_once_in_one_line_with_status_2(argv, says, capsys, tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    started = time.perf_counter()
+    _refused_in_one_line(argv, says, capsys)
     assert list(tmp_path.iterdir()) == []  # nothing left behind
     assert time.perf_counter() - started < 30.0  # refused before any work starts, not after
+
+
+def test_a_set_value_written_as_1e_minus_4_is_a_number_not_text():
+    from agents.cli import _yaml_value
+
+    assert _yaml_value("1e-4") == 1e-4 and _yaml_value("1.0e-4") == 1e-4  # YAML 1.1 reads the first as text
+    assert _yaml_value("[64, 64]") == [64, 64] and _yaml_value("true") is True and _yaml_value("fast") == "fast"

@@ -350,3 +350,45 @@ def test_the_classical_rows_come_back_from_the_cache(tmp_path, monkeypatch):
     assert again == first
     with pytest.raises(AssertionError, match="evaluated again"):  # other seeds: another key
         comparison.compare(None, ["c11-starts"], **{**kwargs, "episodes": 3})
+
+
+@pytest.mark.parametrize("damage", ["truncated", "a key missing", "no trace", "NaN energy", "text success",
+                                    "a reach time without success"])
+def test_a_bad_cache_entry_is_evaluated_again(tmp_path, damage):
+    from agents.experiments import evaluation
+    from agents.files import load_arrays, save_arrays
+
+    def result():
+        return {"success": np.array([True, False]), "collisions": np.array([False, True]),
+                "collision_counts": np.array([0, 2]), "reach_time": np.array([1.5, np.nan]),
+                "energy": np.array([3.0, 4.0]), "peak_current_fraction": np.array([0.5, 0.9]),
+                "return": np.array([-1.0, -2.0]), "seeds": np.array([7, 8]), "traces": [np.ones((4, 3))]}
+
+    runs = []
+
+    def run():
+        runs.append(1)
+        return result()
+
+    first = evaluation.cached_evaluation(tmp_path, "x", [], {"what": damage}, run)
+    [entry] = tmp_path.glob("x-*.npz")
+    arrays = load_arrays(entry)
+    if damage == "truncated":
+        entry.write_bytes(entry.read_bytes()[:100])
+    else:
+        if damage == "a key missing":
+            del arrays["energy"]
+        elif damage == "no trace":
+            del arrays["traces_0"]
+        elif damage == "NaN energy":
+            arrays["energy"][0] = np.nan
+        elif damage == "text success":
+            arrays["success"] = np.array(["yes", "no"])
+        else:
+            arrays["reach_time"][1] = 2.0
+        save_arrays(entry, arrays)
+    again = evaluation.cached_evaluation(tmp_path, "x", [], {"what": damage}, run)
+    assert len(runs) == 2  # evaluated again, not loaded
+    assert np.array_equal(again["energy"], first["energy"]) and len(again["traces"]) == 1
+    evaluation.cached_evaluation(tmp_path, "x", [], {"what": damage}, run)
+    assert len(runs) == 2  # and kept whole again

@@ -50,7 +50,7 @@ def test_a_replay_notices_a_changed_action(minari_folder):
                              verbose=False)
     assert datasets.replay(dataset) == 2
     recorded = dataset[0]
-    env = dataset.recover_environment()
+    env = datasets.environment(dataset)  # from the package's registry, never the metadata's entry point
     seed = next(iter(dataset.storage.get_episode_metadata([0])))["seed"]
     obs, _ = env.reset(seed=int(seed))
     assert np.array_equal(obs, recorded.observations[0])
@@ -122,7 +122,7 @@ def test_residual_cloning_targets_map_back_to_the_recorded_actions(minari_folder
     from scara_gym.wrappers import ResidualSetpoint
 
     dataset = datasets.build("scara/c11/mixed-v0", episodes=2, expert=EXPERT, scores=(0.0, 1.0), verbose=False)
-    mapping = ResidualSetpoint(dataset.recover_environment().unwrapped.task, (2.5, 2.5, 0.05), 0.5)
+    mapping = ResidualSetpoint(datasets.environment(dataset).unwrapped.task, (2.5, 2.5, 0.05), 0.5)
     for number, episode in enumerate(dataset.iterate_episodes()):
         obs, actions = episode.observations[:-1].astype(np.float32), episode.actions
         r = residual_outputs(mapping, obs, actions)
@@ -152,3 +152,149 @@ def test_the_offline_runs_are_registered_with_their_trainer_and_tag():
 def test_datasets_list_names_every_dataset(capsys):
     assert run(["datasets", "list"]) == list(datasets.DATASETS)
     assert "scara/random-targets/mixed-v0" in capsys.readouterr().out
+
+
+# -- datasets inside the trust scheme (issue 52) -------------------------------------------------
+def _remanifest(folder):
+    """Write a dataset folder's manifest again where it has one: whoever can change the files can
+    change the manifest beside them (it is a check of the bytes, not of who wrote them)."""
+    from agents import files
+
+    manifest = folder / files.DIGESTS
+    if manifest.exists():
+        files.write_digests(folder, [line.split("  ", 1)[1] for line in manifest.read_text().splitlines()])
+
+
+def _small_dataset(name="scara/c11/random-v0"):
+    datasets.build(name, episodes=2, expert=EXPERT, scores=(0.0, 1.0), verbose=False)
+    return name
+
+
+@pytest.mark.parametrize("spaces", [True, False], ids=["with-spaces", "without-spaces"])
+def test_a_dataset_never_runs_the_entry_point_it_names(minari_folder, tmp_path, spaces):
+    name = _small_dataset()
+    mark = tmp_path / "ran"
+    path = minari_folder / name / "data" / "metadata.json"
+    metadata = json.loads(path.read_text())
+    env_spec = json.loads(metadata["env_spec"])
+    env_spec.update(entry_point="os:system", kwargs={"command": f"touch {mark}"})
+    metadata["env_spec"] = json.dumps(env_spec)
+    if not spaces:  # Minari then builds the environment to learn them
+        del metadata["observation_space"], metadata["action_space"]
+    path.write_text(json.dumps(metadata))
+    _remanifest(minari_folder / name)
+    config = BCConfig(dataset=name, steps=1, hidden_size=8, residual_scale=(2.5, 2.5, 0.05),
+                      out=str(tmp_path / "bc"))
+    with pytest.raises(ValueError, match=r"scara/c11/random-v0: .*entry point 'os:system'.* refused"):
+        train_bc(config)
+    assert not mark.exists()
+    if spaces:  # the replay of a dataset loaded by Minari itself
+        with pytest.raises(ValueError, match="entry point 'os:system'"):
+            datasets.replay(minari.load_dataset(name))
+        assert not mark.exists()
+
+
+@pytest.mark.parametrize("field, value, message", [
+    ("observations", np.nan, "observations hold a value that is not finite"),
+    ("actions", np.nan, "actions hold a value that is not finite"),
+    ("actions", 1e6, r"actions hold a value outside the action space \[-1, 1\]"),
+])
+def test_behaviour_cloning_refuses_a_dataset_with_bad_values(minari_folder, tmp_path, field, value, message):
+    import h5py
+
+    name = _small_dataset()
+    with h5py.File(minari_folder / name / "data" / "main_data.hdf5", "r+") as data:
+        rows = data["episode_1"][field]
+        tampered = rows[()]
+        tampered[3] = value
+        rows[...] = tampered
+    _remanifest(minari_folder / name)
+    with pytest.raises(ValueError, match=rf"dataset {name}, episode 1: {message} \(step 3\)"):
+        train_bc(BCConfig(dataset=name, steps=2, hidden_size=8, out=str(tmp_path / "bc")))
+    assert not (tmp_path / "bc").exists()  # refused before the run folder is made
+    with pytest.raises(ValueError, match=rf"dataset {name}, episode 1: {message}"):
+        datasets.replay(minari.load_dataset(name))
+
+
+def test_a_built_dataset_carries_a_manifest_and_a_changed_file_is_refused(minari_folder, tmp_path):
+    from agents import files
+
+    name = _small_dataset()
+    folder = minari_folder / name
+    listed = {line.split("  ", 1)[1] for line in (folder / files.DIGESTS).read_text().splitlines()}
+    assert listed == {"data/metadata.json", "data/main_data.hdf5"}
+    assert datasets.load(name).total_episodes == 2
+    with open(folder / "data" / "main_data.hdf5", "ab") as data:
+        data.write(b"\0")
+    with pytest.raises(ValueError, match=r"main_data\.hdf5: its SHA-256 is not the one"):
+        train_bc(BCConfig(dataset=name, steps=2, hidden_size=8, out=str(tmp_path / "bc")))
+
+
+def test_a_truncated_dataset_without_a_manifest_is_refused_in_one_line(minari_folder, tmp_path):
+    from agents import files
+
+    name = _small_dataset()
+    (minari_folder / name / files.DIGESTS).unlink()  # one from elsewhere: nothing to check its bytes against
+    data = minari_folder / name / "data" / "main_data.hdf5"
+    data.write_bytes(data.read_bytes()[: data.stat().st_size // 2])
+    with pytest.raises(ValueError, match=rf"dataset {name}: .*main_data\.hdf5 cannot be read"):
+        train_bc(BCConfig(dataset=name, steps=2, hidden_size=8, out=str(tmp_path / "bc")))
+    assert not (tmp_path / "bc").exists()
+
+
+@pytest.mark.slow
+def test_a_build_killed_at_random_instants_never_leaves_a_dataset_read_as_valid(tmp_path, monkeypatch):
+    """SIGKILL at random instants of `datasets build` (the expert given, so that the episodes and the
+    write are most of its time): after every kill the dataset either does not load or is the whole
+    one, and a rerun ends in the dataset an uninterrupted build writes."""
+    import os
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    name, episodes = "scara/c11/random-v0", 150
+    code = (f"from agents.experiments import datasets; datasets.build({name!r}, episodes={episodes}, "
+            f"expert={EXPERT!r}, scores=(0.0, 1.0), verbose=False)")
+    monkeypatch.setenv("MINARI_DATASETS_PATH", str(tmp_path / "reference"))
+    (tmp_path / "reference").mkdir()
+    started = time.perf_counter()
+    subprocess.run([sys.executable, "-c", code], check=True, capture_output=True)
+    span = time.perf_counter() - started
+    reference = datasets.load(name)
+
+    def same(dataset) -> bool:
+        return dataset.total_episodes == reference.total_episodes and all(
+            np.array_equal(a.observations, b.observations) and np.array_equal(a.actions, b.actions)
+            and np.array_equal(a.rewards, b.rewards)
+            for a, b in zip(dataset.iterate_episodes(), reference.iterate_episodes()))
+
+    folder = tmp_path / "killed"
+    folder.mkdir()
+    monkeypatch.setenv("MINARI_DATASETS_PATH", str(folder))
+    rng = np.random.default_rng(0)
+    kills = 0
+
+    def loaded():
+        try:
+            dataset = datasets.load(name)
+        except FileNotFoundError:
+            return None  # not there: never half there
+        assert same(dataset)  # there: the whole dataset
+        return dataset
+
+    for _ in range(5):  # each start killed at a random instant, most of them within the build
+        if loaded() is not None:
+            break
+        process = subprocess.Popen([sys.executable, "-c", code], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+                                   env={**os.environ, "MINARI_DATASETS_PATH": str(folder)})
+        time.sleep(float(rng.uniform(0.3, 1.0)) * span)
+        if process.poll() is None:
+            process.send_signal(signal.SIGKILL)
+            kills += 1
+        process.wait()
+    assert kills >= 2
+    if loaded() is None:  # the last rerun runs to the end
+        subprocess.run([sys.executable, "-c", code], check=True, capture_output=True,
+                       env={**os.environ, "MINARI_DATASETS_PATH": str(folder)})
+    assert same(loaded())

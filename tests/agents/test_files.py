@@ -150,7 +150,7 @@ def test_a_run_of_one_trainer_is_not_resumed_by_another(tmp_path):
     config = Config(num_envs=2, num_steps=8, num_minibatches=1, update_epochs=1, total_timesteps=16, out=str(folder))
     with pytest.raises(ValueError, match=r"holds another run \(trainer 'sb3' \(this run: 'torch-ppo'\)"):
         train(config, resume=True)
-    assert sorted(p.name for p in folder.iterdir()) == sorted([".lock", *(p.name for p in shipped.iterdir())])
+    assert sorted(p.name for p in folder.iterdir()) == sorted(p.name for p in shipped.iterdir())  # nothing added
 
 
 def _untrusted_copy(tmp_path, extra_line: bool = True):
@@ -342,3 +342,144 @@ def test_a_finished_torch_run_carries_its_manifest_and_a_changed_weight_is_refus
     with pytest.raises(ValueError, match=r"model\.pt: its SHA-256"):
         train(Config(num_envs=2, num_steps=8, num_minibatches=1, update_epochs=1, total_timesteps=16,
                      init_from=str(run), out=str(tmp_path / "fine-tune")))
+
+
+# -- trust as content (issue 52) ----------------------------------------------------------------
+def _shipped(name="ppo_pd"):
+    from pathlib import Path
+
+    return Path(__file__).resolve().parents[2] / "agents" / "models" / name
+
+
+def _hostile_model_zip(path, mark) -> None:
+    """A model.zip whose ``data`` holds a serialized object, as SB3 writes its policy class: loading
+    it unpickles ``Payload(mark)``."""
+    import base64
+    import json
+    import zipfile
+
+    with zipfile.ZipFile(_shipped() / "model.zip") as genuine, zipfile.ZipFile(path, "w") as hostile:
+        for name in genuine.namelist():
+            data = genuine.read(name)
+            if name == "data":
+                record = json.loads(data)
+                record["policy_class"] = {":type:": "<class 'type'>",
+                                          ":serialized:": base64.b64encode(pickle.dumps(Payload(mark))).decode()}
+                data = json.dumps(record).encode()
+            hostile.writestr(name, data)
+
+
+def test_an_empty_manifest_trusts_nothing_and_is_never_recorded(tmp_path, capsys):
+    import hashlib
+    import shutil
+
+    from agents.cli import run
+
+    nothing = hashlib.sha256(b"").hexdigest()
+    empty = tmp_path / "checkpoints"
+    empty.mkdir()
+    (empty / files.DIGESTS).write_text("")  # what an SB3 run with checkpoint_freq and no checkpoint wrote
+    try:
+        files.record_trusted(empty)
+    except ValueError as error:
+        assert "lists no file" in str(error)
+    store = files.trust_store()
+    assert not store.exists() or nothing not in store.read_text().split()
+    hostile = tmp_path / "hostile"
+    hostile.mkdir()
+    shutil.copy(_shipped() / "config.json", hostile / "config.json")
+    (hostile / files.DIGESTS).write_text("")
+    mark = tmp_path / "ran"
+    _hostile_model_zip(hostile / "model.zip", mark)
+    with pytest.raises(SystemExit) as exit_:
+        run(["evaluate", "--env-id", "Scara-C11-v0", "--policies", f"sb3:{hostile}", "--episodes", "1",
+             "--out", str(tmp_path / "results")])
+    error = capsys.readouterr().err
+    assert not mark.exists()
+    assert exit_.value.code == 2 and len(error.strip().splitlines()) == 1 and "lists no file" in error
+
+
+def test_a_file_present_but_not_listed_is_never_loaded(tmp_path):
+    pytest.importorskip("stable_baselines3")
+    import gymnasium as gym
+
+    from agents.algorithms.sb3.policy import SB3Policy
+
+    folder = tmp_path / "run"
+    shutil_copy = __import__("shutil").copytree
+    shutil_copy(_shipped(), folder)
+    mark = tmp_path / "ran"
+    (folder / "vecnormalize.pkl").write_bytes(pickle.dumps(Payload(mark)))
+    files.write_digests(folder, ["config.json", "model.zip"])  # a run without a normalizer, say
+    files.record_trusted(folder)  # trusted, but for these two files only
+    with pytest.raises(ValueError, match=r"run/vecnormalize\.pkl: not listed in .*SHA256SUMS"):
+        SB3Policy(gym.make("Scara-C11-v0"), folder)
+    assert not mark.exists()
+
+
+def test_a_file_swapped_after_its_check_is_not_the_one_loaded(tmp_path, monkeypatch):
+    """The race of a check, then a reopen: the attacker swaps the file the moment its digest is
+    taken. What loads must be the bytes that were hashed."""
+    pytest.importorskip("stable_baselines3")
+    import hashlib
+    import shutil
+
+    import gymnasium as gym
+
+    from agents.algorithms.sb3.policy import PPOPolicy
+
+    folder = tmp_path / "ppo_pd"
+    shutil.copytree(_shipped(), folder)  # the shipped manifest: trusted everywhere
+    genuine = (folder / "vecnormalize.pkl").read_bytes()
+    mark = tmp_path / "ran"
+    sha256 = hashlib.sha256
+
+    def racing(data=b"", *args, **kwargs):
+        digest = sha256(data, *args, **kwargs)
+        if bytes(data) == genuine:  # just checked: the attacker wins the race
+            (folder / "vecnormalize.pkl").write_bytes(pickle.dumps(Payload(mark)))
+        return digest
+
+    monkeypatch.setattr(hashlib, "sha256", racing)
+    policy = PPOPolicy(gym.make("Scara-C11-v0"), folder)
+    monkeypatch.setattr(hashlib, "sha256", sha256)
+    assert not mark.exists()
+    assert policy.normalizer is not None  # the genuine normalizer, from the bytes that were checked
+
+
+@pytest.mark.parametrize("mistake", ["symlink", "group-writable", "world-writable"])
+def test_a_trust_store_others_could_write_is_refused(tmp_path, monkeypatch, mistake):
+    folder = tmp_path / "run"
+    files.write_json(folder / "config.json", {"algo": "ppo"})
+    files.write_digests(folder, files.POLICY_FILES)
+    store = tmp_path / "store"
+    if mistake == "symlink":
+        elsewhere = tmp_path / "someone-elses"
+        elsewhere.write_text(f"{files.manifest_digest(folder)}\n")
+        elsewhere.chmod(0o600)
+        store.symlink_to(elsewhere)
+    else:
+        store.write_text(f"{files.manifest_digest(folder)}\n")
+        store.chmod(0o620 if mistake == "group-writable" else 0o602)
+    monkeypatch.setenv(files.TRUST_STORE_ENV, str(store))
+    for act in (files.is_trusted, files.require_trusted, files.record_trusted):
+        with pytest.raises(ValueError, match=rf"{store}: the trust store .*(a symlink|writable by)"):
+            act(folder)
+
+
+def test_a_run_refused_after_its_folder_was_claimed_leaves_nothing_behind(tmp_path):
+    new, old = tmp_path / "new", tmp_path / "old"
+    old.mkdir()
+    (old / "NOTES").write_text("mine\n")
+    for folder in (new, old):
+        with pytest.raises(ValueError, match="refused after the claim"):
+            with files.exclusive(folder):
+                files.claim_run_folder(folder, {"trainer": "bc", "seed": 0}, resume=False, overwrite=False)
+                raise ValueError("refused after the claim")  # as a dataset or a device refused there would be
+    assert not new.exists() and sorted(p.name for p in old.iterdir()) == ["NOTES"]
+    with pytest.raises(KeyboardInterrupt):
+        with files.exclusive(new):
+            files.claim_run_folder(new, {"trainer": "bc", "seed": 0}, resume=False, overwrite=False)
+            files.write_json(new / "summary.json", {})  # it got further: what it wrote stays, for a resume
+            raise KeyboardInterrupt
+    assert sorted(p.name for p in new.iterdir()) == [".lock", files.RUN_RECORD, "summary.json"]

@@ -110,3 +110,10 @@ def test_the_mpc_reaches_the_c11_target_without_a_collision_and_its_episodes_are
     assert again["reach_time"].tolist() == first["reach_time"].tolist()
     assert np.array_equal(again["solve_times"], first["solve_times"])  # read back, not re-run
     assert len(list(tmp_path.iterdir())) == 1
+
+
+def test_the_mpc_refuses_a_config_of_the_wrong_type_by_name():
+    with pytest.raises(TypeError, match="solver_options must be a dict of CasADi solver options, got 'fast'"):
+        MPCConfig(solver_options="fast")
+    with pytest.raises(TypeError, match="config must be an MPCConfig or None, got 'fast'"):
+        MPCPolicy(gym.make("Scara-C11-v1", control_mode="voltage"), config="fast")

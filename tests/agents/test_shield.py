@@ -259,3 +259,15 @@ def test_the_adverse_corners_keep_pd_off_the_wall_where_the_ends_alone_do_not(mo
     assert result["collisions"] == 0 and result["success"]
     monkeypatch.setattr(shield_module, "adverse_corners", lambda ranges: [])
     assert run_episode(env, Shield(env, PDPolicy(env), robust="all"), seed=0)["collisions"] > 0
+
+
+def test_a_shield_without_a_policy_says_so_when_called():
+    import gymnasium as gym
+
+    from scara_gym.wrappers import Shield
+
+    env = gym.make("Scara-C11-v1")
+    obs, _ = env.reset(seed=0)
+    shield = Shield(env, None)  # for filter(): shielded training
+    with pytest.raises(ValueError, match="Shield: no policy to shield .*policy=None is for filter"):
+        shield(obs)

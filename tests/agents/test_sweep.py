@@ -145,3 +145,15 @@ def test_a_local_runtime_binds_to_loopback_and_stops_on_sigterm(tmp_path, monkey
     with pytest.raises(KeyboardInterrupt):  # an existing cluster: joined, not bound or stopped here
         sweep.run_sweep("ppo", "Scara-C11-v1", "pd", [0], {}, tmp_path, episodes=1, address="ray://head:10001")
     assert "_node_ip_address" not in calls["init"] and calls["init"]["address"] == "ray://head:10001"
+
+
+def test_a_folder_in_the_working_folder_does_not_shadow_a_shipped_model(tmp_path, monkeypatch):
+    pytest.importorskip("stable_baselines3")
+    import shutil
+
+    from agents.algorithms.sb3.policy import SHIPPED_MODELS, resolve_model
+
+    monkeypatch.chdir(tmp_path)
+    shutil.copytree(SHIPPED_MODELS / "ppo_voltage", tmp_path / "ppo_pd")  # another model under the shipped name
+    assert resolve_model("ppo_pd") == SHIPPED_MODELS / "ppo_pd"  # the name is the shipped model's
+    assert resolve_model("./ppo_pd").resolve() == tmp_path / "ppo_pd"  # a path is a path

@@ -134,3 +134,13 @@ def test_sac_with_her_trains_on_the_goal_env_resumes_and_is_evaluated(tmp_path):
     rows, _ = evaluate([f"sb3:{out}"], env_id="Scara-C11-Goal-v0", condition="random-targets", episodes=2)
     assert rows[0]["episodes"] == 2 and 0.0 <= rows[0]["success rate"] <= 1.0
     assert all(o["success"] or o["collisions"] or o["reach_time"] is None for o in rows[0]["outcomes"])
+
+
+def test_a_run_without_checkpoints_records_no_empty_manifest(tmp_path):
+    import hashlib
+
+    out = tmp_path / "ppo"
+    training.train("ppo", out, hyperparams={**_tiny("ppo"), "checkpoint_freq": 10**6}, total_timesteps=100)
+    assert not (out / "checkpoints" / files.DIGESTS).exists()  # no checkpoint: nothing to list
+    assert hashlib.sha256(b"").hexdigest() not in files.trust_store().read_text().split()
+    assert files.is_trusted(out)

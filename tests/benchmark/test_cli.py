@@ -45,3 +45,12 @@ def test_bench_quick_runs_and_reports_ratios(capsys):
                    if line.startswith("| scipy") or line.startswith("| scara_gym")]
     assert len(reach_times) == 4
     assert max(reach_times) - min(reach_times) < 1e-5  # same event, same tolerance
+
+
+@pytest.mark.parametrize("argv, says", [(["accuracy", "--seed", "-1"], "--seed must be >= 0, got -1"),
+                                        (["accuracy", "--episodes", "0"], "--episodes must be >= 1, got 0")])
+def test_a_mistake_ends_in_one_line_with_status_2(argv, says, capsys):
+    with pytest.raises(SystemExit) as exit_:
+        main(argv)
+    err = capsys.readouterr().err
+    assert exit_.value.code == 2 and says in err and "Traceback" not in err

@@ -117,3 +117,15 @@ def test_a_condition_reruns_on_other_seeds_and_records_itself():
     assert record["c11-starts"]["random_starts"] and record["c11"]["start_offsets"] is None
     assert record["sensor-noise"]["env_kwargs"] == {"sensor_noise": protocol.SENSOR_NOISE}
     json.dumps(record)
+
+
+def test_evaluate_takes_a_plain_callable_and_refuses_bad_arguments_by_name():
+    """The docstring's promise: a policy is a callable obs -> action (reset() is called where it has one)."""
+    result = protocol.evaluate("c11", lambda env: (lambda obs: np.zeros(3)), episodes=2)
+    assert len(result["success"]) == 2
+    with pytest.raises(ValueError, match=r"episodes must be an integer in \[1, .*\], got 0"):
+        protocol.tuning("c11", episodes=0)
+    with pytest.raises(ValueError, match="record must be an integer >= 0, got -1"):
+        protocol.evaluate("c11", lambda env: (lambda obs: np.zeros(3)), episodes=1, record=-1)
+    with pytest.raises(TypeError, match="env_kwargs must be a mapping of environment arguments or None, got 'x'"):
+        protocol.evaluate("c11", lambda env: (lambda obs: np.zeros(3)), episodes=1, env_kwargs="x")

@@ -224,3 +224,12 @@ def test_compute_reward_refuses_goals_and_infos_that_do_not_fit():
     with pytest.raises(ValueError, match="one shape"):
         env.compute_truncated(achieved, np.zeros((3, 3)), infos)
     np.testing.assert_array_equal(env.compute_reward(achieved, achieved, infos), np.zeros(4))  # fit: as before
+
+
+def test_complex_goals_are_refused_not_cast():
+    env = gym.make("Scara-C11-Goal-v0").unwrapped
+    goal = np.array([2.0, 2.0, 0.3])
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # a cast that discards the imaginary part warns: that must not happen either
+        with pytest.raises(ValueError, match="achieved_goal and desired_goal must be arrays of real numbers"):
+            env.compute_reward(goal + 1j, goal, {})

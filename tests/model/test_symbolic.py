@@ -109,3 +109,11 @@ def test_bad_arguments_are_named():
         symbolic_model(critical_rule="sometimes")
     with pytest.raises(TypeError, match="params must be a ScaraParams"):
         symbolic_model({"arm.load_mass": 1.0})
+
+
+@pytest.mark.parametrize("flag, value", [("widen", "yes"), ("exact_switches", 2)])
+def test_the_symbolic_models_flags_are_booleans(flag, value):
+    from scara_gym.model.symbolic import symbolic_model
+
+    with pytest.raises(TypeError, match=f"{flag} must be True or False, got {value!r}"):
+        symbolic_model(**{flag: value})

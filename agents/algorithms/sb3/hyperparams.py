@@ -10,12 +10,25 @@ from __future__ import annotations
 from pathlib import Path
 
 from scara_gym.benchmark.protocol import ENV_ID
+from scara_gym.envs.task import MAX_ROBOTS
 from scara_gym.model import checks
 
 INTEGERS = {"n_timesteps": 1, "n_envs": 1, "env_threads": 1, "torch_threads": 0, "n_steps": 1, "batch_size": 1,
             "n_epochs": 1, "buffer_size": 1, "learning_starts": 0, "gradient_steps": 1, "eval_freq": 1,
             "eval_episodes": 1, "snapshot_freq": 1, "checkpoint_freq": 1, "policy_delay": 1, "n_sampled_goal": 1}
 """integer hyperparameters and their least value"""
+
+
+def numba_threads() -> int:
+    """numba's threads on this machine: the most a vector env's env_threads may be."""
+    import numba
+
+    return numba.config.NUMBA_NUM_THREADS
+
+
+UPPER = {"n_envs": lambda: MAX_ROBOTS, "env_threads": numba_threads}
+"""integer hyperparameters with a largest value: the vector env's robots, numba's threads on this machine
+(named here, not as the env's internal num_robots and num_threads)"""
 REALS = {"learning_rate": (0.0, 1.0, True), "gamma": (0.0, 1.0, True), "gae_lambda": (0.0, 1.0, True),
          "tau": (0.0, 1.0, True), "clip_range": (0.0, 10.0, True), "vf_coef": (0.0, 1e6, False),
          "max_grad_norm": (0.0, 1e6, True), "noise_std": (0.0, 10.0, False), "log_std_init": (-20.0, 5.0, False),
@@ -52,7 +65,7 @@ def check_hyperparams(hyper: dict) -> dict:
     finite rates in range, networks of positive widths); a mistake names the entry."""
     for name, low in INTEGERS.items():
         if name in hyper:
-            checks.integer(name, hyper[name], low)
+            checks.integer(name, hyper[name], low, UPPER.get(name, lambda: None)())
     for name, (low, high, low_open) in REALS.items():
         if name in hyper:
             checks.real(name, hyper[name], low, high, low_open=low_open)

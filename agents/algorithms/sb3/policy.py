@@ -2,11 +2,13 @@
 and the agents shipped with the package (``agents/models/NAME``, found by name from anywhere).
 
 Their files are pickle: a folder loads only when it is trusted (agents.files.require_trusted:
-shipped or published with the package, written by a run on this machine, or ``trust=True``)."""
+shipped or published with the package, written by a run on this machine, or ``trust=True``), and
+only the files its manifest lists, from the bytes that were checked."""
 
 from __future__ import annotations
 
-import json
+import io
+import pickle
 from pathlib import Path
 
 import numpy as np
@@ -15,6 +17,8 @@ from agents.files import require_trusted
 from scara_gym.wrappers import ResidualSetpoint
 
 SHIPPED_MODELS = Path(__file__).resolve().parents[2] / "models"
+MODEL_FILES = ("config.json", "model.zip", "vecnormalize.pkl")
+"""the files an SB3 model folder's policy loads: each one that the folder holds must be in its manifest"""
 
 
 def algorithm_class(algo: str):
@@ -36,12 +40,13 @@ def shipped_models() -> list[str]:
 
 
 def resolve_model(name_or_path: str | Path) -> Path:
-    """A model folder: an existing path, else the name of a shipped model."""
+    """A model folder: the name of a shipped model (a plain name: a folder of that name in the working
+    folder does not shadow it; give it as ./NAME), else an existing path."""
+    if str(name_or_path) in shipped_models():
+        return SHIPPED_MODELS / str(name_or_path)
     path = Path(name_or_path)
     if (path / "model.zip").exists():
         return path
-    if str(name_or_path) in shipped_models():
-        return SHIPPED_MODELS / str(name_or_path)
     raise FileNotFoundError(f"no PPO model at {str(name_or_path)!r}: give a folder with model.zip "
                             f"or a shipped model name {shipped_models()}")
 
@@ -50,15 +55,14 @@ class SB3Policy:
     """A model saved by :func:`train` (or a shipped one) as an obs -> action policy for one env."""
 
     def __init__(self, env, model_dir: str | Path, trust: bool = False) -> None:
-        import pickle
-
         model_dir = Path(model_dir)
         if not (model_dir / "model.zip").is_file():
             other = " (a torch PPO run: torchppo:DIR)" if (model_dir / "model.pt").is_file() else ""
             raise FileNotFoundError(f"{model_dir}: no SB3 model.zip{other}")
-        require_trusted(model_dir, trust)  # its files are its manifest's, and that manifest is trusted
+        # its files, read once and checked against a trusted manifest: what loads is what was checked
+        checked = require_trusted(model_dir, trust, MODEL_FILES)
         self.env = env.unwrapped
-        config = json.loads((model_dir / "config.json").read_text())
+        config = checked.json("config.json")
         trained_mode = config["env_kwargs"]["control_mode"]
         if trained_mode != self.env.control_mode:
             raise ValueError(f"{model_dir} was trained in {trained_mode!r} mode, "
@@ -67,11 +71,11 @@ class SB3Policy:
         # acting needs no replay buffer: a 1-entry plain one (a HER buffer would need the env)
         replay = {"replay_buffer_class": None, "replay_buffer_kwargs": {}, "buffer_size": 1} \
             if algo in ("sac", "td3") else None
-        self.model = algorithm_class(algo).load(model_dir / "model.zip", device="cpu", custom_objects=replay)
+        self.model = algorithm_class(algo).load(io.BytesIO(checked.bytes("model.zip")), device="cpu",
+                                                custom_objects=replay)
         self.normalizer = None
-        if (model_dir / "vecnormalize.pkl").exists():
-            with open(model_dir / "vecnormalize.pkl", "rb") as f:
-                normalizer = pickle.load(f)
+        if "vecnormalize.pkl" in checked:
+            normalizer = pickle.loads(checked.bytes("vecnormalize.pkl"))
             if normalizer.norm_obs:
                 self.normalizer = normalizer
         self.mapping = residual_mapping(self.env.task, config["hyperparams"])

@@ -18,8 +18,9 @@ One function, :func:`train`, trains any of the three algorithms from a hyperpara
 A folder that holds a run is refused unless ``resume`` (continue it; a finished one is returned
 as it is) or ``overwrite`` (train it again from scratch), and so is one that holds a run of other
 settings (agents.files.claim_run_folder). Every snapshot, the finished run and its checkpoints
-carry a manifest of digests recorded as this machine's own (agents.files.record_trusted), and a
-snapshot resumes only from a trusted manifest: its files are pickle.
+carry a manifest of digests recorded as this machine's own (agents.files.record_trusted; never one
+that lists nothing: a run that saved no checkpoint writes no checkpoints manifest), and a snapshot
+resumes only from a trusted manifest, from the bytes checked against it: its files are pickle.
 
 Checkpoint rule: none. The policy at the end of the budget is the one evaluated; the
 evaluation history is a learning curve, not a selector. A resumed run continues the same
@@ -29,7 +30,9 @@ valid run of the recipe, not a bit-for-bit replay of an uninterrupted one.
 
 from __future__ import annotations
 
+import io
 import json
+import pickle
 import shutil
 import time
 from pathlib import Path
@@ -71,9 +74,10 @@ def _normalize_kwargs(hyper: dict) -> dict | None:
     return dict(normalize) if normalize else None
 
 
-def make_envs(env_id: str, env_kwargs: dict, hyper: dict, seed: int, normalizer: Path | None = None):
+def make_envs(env_id: str, env_kwargs: dict, hyper: dict, seed: int, normalizer: bytes | None = None):
     """(training VecEnv, evaluation VecEnv), wrapped alike: residual set-points (if the block
-    has them), then VecNormalize (if it asks for it; loaded from `normalizer` on resume)."""
+    has them), then VecNormalize (if it asks for it; on resume unpickled from `normalizer`, the
+    checked bytes of a trusted snapshot's vecnormalize.pkl)."""
     import gymnasium as gym
     from stable_baselines3.common.monitor import Monitor
     from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
@@ -96,7 +100,9 @@ def make_envs(env_id: str, env_kwargs: dict, hyper: dict, seed: int, normalizer:
     if norm is not None:
         gamma = hyper.get("gamma", 0.99)
         if normalizer is not None:
-            train_env = VecNormalize.load(str(normalizer), train_env)
+            loaded = pickle.loads(normalizer)  # VecNormalize.load, from the bytes that were checked
+            loaded.set_venv(train_env)
+            train_env = loaded
         else:
             train_env = VecNormalize(train_env, gamma=gamma, **norm)
         eval_env = VecNormalize(eval_env, norm_obs=norm.get("norm_obs", True), norm_reward=False,
@@ -171,8 +177,8 @@ def _save_history(path: Path, eval_callback) -> None:
              successes=np.array(eval_callback.evaluations_successes, dtype=float).reshape(shape))
 
 
-def _restore_history(path: Path, eval_callback, best_mean_reward: float) -> None:
-    with np.load(path) as data:
+def _restore_history(saved: bytes, eval_callback, best_mean_reward: float) -> None:
+    with np.load(io.BytesIO(saved), allow_pickle=False) as data:
         eval_callback.evaluations_timesteps = [int(t) for t in data["timesteps"]]
         eval_callback.evaluations_results = [list(r) for r in data["results"]]
         eval_callback.evaluations_length = [list(r) for r in data["ep_lengths"]]
@@ -224,19 +230,19 @@ def _train(algo: str, out: str | Path, env_id: str, control_mode: str, seed: int
     if not (snapshot / "progress.json").exists() and (out / "snapshot.old" / "progress.json").exists():
         snapshot = out / "snapshot.old"  # interrupted while swapping
     resuming = (snapshot / "progress.json").exists()
-    if resuming:
-        require_trusted(snapshot)  # pickle: only this machine's own snapshots, or --trust
-    progress = json.loads((snapshot / "progress.json").read_text()) if resuming else \
+    # pickle: only this machine's own snapshots (or --trust), loaded from the bytes checked against their manifest
+    saved = require_trusted(snapshot, wanted=SNAPSHOT_FILES) if resuming else None
+    progress = saved.json("progress.json") if saved is not None else \
         {"num_timesteps": 0, "best_mean_reward": -np.inf, "train_seconds": 0.0}
-    normalizer = snapshot / "vecnormalize.pkl" if resuming and (snapshot / "vecnormalize.pkl").exists() else None
+    normalizer = saved.bytes("vecnormalize.pkl") if saved is not None and "vecnormalize.pkl" in saved else None
     train_env, eval_env = make_envs(env_id, env_kwargs, hyper, seed, normalizer)
 
     Algorithm = algorithm_class(algo)
-    if resuming:
-        model = Algorithm.load(snapshot / "model.zip", env=train_env, device="cpu",
+    if saved is not None:
+        model = Algorithm.load(io.BytesIO(saved.bytes("model.zip")), env=train_env, device="cpu",
                                tensorboard_log=str(out / "tb"))
-        if (snapshot / "replay_buffer.pkl").exists():
-            model.load_replay_buffer(snapshot / "replay_buffer.pkl")
+        if "replay_buffer.pkl" in saved:
+            model.load_replay_buffer(io.BytesIO(saved.bytes("replay_buffer.pkl")))
     else:
         from gymnasium import spaces
 
@@ -248,8 +254,8 @@ def _train(algo: str, out: str | Path, env_id: str, control_mode: str, seed: int
     eval_callback = EvalCallback(eval_env, n_eval_episodes=hyper.get("eval_episodes", 5),
                                  eval_freq=per_env(hyper.get("eval_freq", 25_000)), log_path=str(out / "eval"),
                                  best_model_save_path=None, deterministic=True, verbose=0)
-    if resuming:
-        _restore_history(snapshot / "evaluations.npz", eval_callback, progress["best_mean_reward"])
+    if saved is not None:
+        _restore_history(saved.bytes("evaluations.npz"), eval_callback, progress["best_mean_reward"])
     clock = {"before": progress["train_seconds"], "started": time.perf_counter()}
     snapshots = _snapshot_callback(out, int(hyper.get("snapshot_freq", 50_000)), eval_callback, clock)
 
@@ -277,9 +283,10 @@ def _train(algo: str, out: str | Path, env_id: str, control_mode: str, seed: int
     write_json(out / "config.json", config)
     write_digests(out, POLICY_FILES)
     record_trusted(out)
-    if (out / "checkpoints").is_dir():  # scara-agents select loads them
-        write_digests(out / "checkpoints", [p.name for p in (out / "checkpoints").iterdir() if p.is_file()
-                                            and not p.name.startswith(".") and p.name != DIGESTS])
+    kept = [p.name for p in (out / "checkpoints").iterdir() if p.is_file() and not p.name.startswith(".")
+            and p.name != DIGESTS] if (out / "checkpoints").is_dir() else []
+    if kept:  # scara-agents select loads them; no checkpoint: no manifest (one listing nothing would vouch for nothing)
+        write_digests(out / "checkpoints", kept)
         record_trusted(out / "checkpoints")
     shutil.rmtree(out / "snapshot", ignore_errors=True)
     shutil.rmtree(out / "snapshot.old", ignore_errors=True)

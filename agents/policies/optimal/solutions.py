@@ -2,11 +2,11 @@
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
 import numpy as np
 
+from agents.files import json_record
 from agents.policies.optimal.transcription import CollocationConfig
 from scara_gym import DEFAULT_PARAMS, ScaraParams
 
@@ -17,7 +17,7 @@ def cached_solution(start=(0.0, 0.0, 0.0), target=(2.0, 2.0, 0.3), params: Scara
                     wall_margin: float = CollocationConfig.wall_margin) -> dict | None:
     """The shipped held solution for this start, target, parameter set and wall margin, if there is one."""
     for path in sorted(SOLUTIONS.glob("*.json")):
-        data = json.loads(path.read_text())
+        data = json_record(path)
         if (np.allclose(data["start"], start, atol=1e-12) and np.allclose(data["target"], target, atol=1e-12)
                 and data["params"] == params_key(params) and data["config"]["wall_margin"] == wall_margin):
             return data
