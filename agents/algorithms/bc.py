@@ -26,6 +26,7 @@ import torch
 from torch import nn
 
 from agents.algorithms.bc_config import BCConfig
+from agents.algorithms.offline_data import checked_episodes, environment, load
 from agents.files import (
     POLICY_FILES,
     WEIGHTS_FILES,
@@ -57,10 +58,8 @@ def residual_outputs(mapping: ResidualSetpoint, obs: np.ndarray, actions: np.nda
 def transitions(dataset_id: str, config: BCConfig | None = None) -> tuple[np.ndarray, np.ndarray]:
     """(observations, targets) of every step of a Minari dataset: each recorded action (with
     ``config.residual_scale``: its residual output, residual_outputs) with the observation it was
-    taken in. The dataset loads without running code (agents.experiments.datasets.load) and an
+    taken in. The dataset loads without running code (agents.algorithms.offline_data.load) and an
     episode with values that are not finite or outside their spaces is refused by name."""
-    from agents.experiments.datasets import checked_episodes, environment, load
-
     dataset = load(dataset_id)  # never runs the entry point the dataset names
     env = environment(dataset)
     obs, actions = [], []

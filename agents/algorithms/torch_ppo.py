@@ -42,6 +42,7 @@ from agents.files import (
     write_json,
 )
 from scara_gym.benchmark.protocol import SENSOR_NOISE
+from scara_gym.envs.cuda_vector import load_backend
 from scara_gym.wrappers import ResidualSetpoint, Shield
 
 LOG_SQRT_2PI = 0.5 * float(np.log(2 * np.pi))
@@ -264,8 +265,6 @@ def train(config: Config, resume: bool = False, hooks: list[Hook] | None = None,
     agents.algorithms.torch_ppo_hooks.hooks_for)."""
     out = Path(config.out)
     if config.device == "cuda":  # a machine without the GPU is told so before the run folder is made
-        from scara_gym.envs.cuda_vector import load_backend
-
         try:
             load_backend()
         except (ImportError, RuntimeError) as error:
