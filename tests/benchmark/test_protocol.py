@@ -117,3 +117,27 @@ def test_a_condition_reruns_on_other_seeds_and_records_itself():
     assert record["c11-starts"]["random_starts"] and record["c11"]["start_offsets"] is None
     assert record["sensor-noise"]["env_kwargs"] == {"sensor_noise": protocol.SENSOR_NOISE}
     json.dumps(record)
+
+
+def test_the_corners_condition_puts_every_parameter_at_an_end_of_its_range():
+    """corners (issue 53): every parameter of the "all" ranges at its low or high end, the ends drawn
+    per episode from the condition's own seeds, beside random-shifts (the same ranges, drawn inside)."""
+    from scara_gym.envs.randomization import ParameterRanges
+
+    corners = protocol.CONDITIONS["corners"]
+    ranges = ParameterRanges.preset("all", DEFAULT_PARAMS).ranges
+    assert corners.seed == protocol.EVALUATION_SEED + 12 * protocol.SEED_BAND and not corners.deterministic
+    assert corners.env_kwargs == protocol.CONDITIONS["random-shifts"].env_kwargs  # observation bounds alike
+    env = corners.make_env()
+    drawn = []
+    for seed in corners.seeds(30):
+        params = env.reset(seed=seed, options=corners.options(seed))[1]["params"]
+        assert params == corners.options(seed)["params"] and set(params) == set(ranges)
+        assert all(params[path] in bounds for path, bounds in ranges.items())
+        assert env.unwrapped.episode_params == DEFAULT_PARAMS.replace(params)
+        drawn.append(tuple(params.values()))
+    assert len(set(drawn)) == 30
+    assert all({row[i] for row in drawn} == set(bounds) for i, bounds in enumerate(ranges.values()))  # both ends
+    assert protocol.protocol_record(["corners"])["corners"]["corners"] == "all"
+    result = protocol.evaluate("corners", lambda env: Hold(env), episodes=2)
+    assert result["condition"] == "corners" and len(result["success"]) == 2
