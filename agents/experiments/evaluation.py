@@ -176,8 +176,12 @@ def cached_evaluation(cache: Path | None, prefix: str, sources, description, run
 
 
 def condition_description(condition: Condition, episodes: int | None) -> list:
-    """What a cache key says of a condition: all its fields and the seeds evaluated."""
-    return [dataclasses.asdict(condition), condition.seeds(episodes)]
+    """What a cache key says of a condition: all its fields and the seeds evaluated. A condition
+    without corners leaves that field out, so the evaluations cached before it existed stay valid."""
+    fields = dataclasses.asdict(condition)
+    if fields["corners"] is None:
+        del fields["corners"]
+    return [fields, condition.seeds(episodes)]
 
 
 MPC_SOURCES = (mpc_module, symbolic_module)

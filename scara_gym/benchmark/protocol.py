@@ -12,6 +12,7 @@ the datasets and a user's own agent are scored.
 | ``c11-starts`` | the start: q1, q2 in (0 +- 0.05) rad, q3 in [0, 0.05] m (``START_OFFSETS``) |
 | ``random-targets`` | the target, as ``randomize_target=True`` (the env card's region) |
 | ``random-shifts`` | the parameters, as ``randomize_params="all"`` (the card's ranges) |
+| ``corners`` | the parameters at a corner of the "all" ranges: each parameter at one end of its range, the end drawn per parameter (``corner_params``) |
 | ``load-x2`` | the start (as c11-starts), with the load mass x2 (0.5 -> 1.0 kg) |
 | ``wall-closer`` | the start, with the wall 2 cm closer (x_obs 0.35 -> 0.37 m) |
 | ``current-limits-15`` | the start, with every current limit -15 % |
@@ -40,7 +41,7 @@ import gymnasium as gym
 import numpy as np
 
 from scara_gym.benchmark.episodes import run_episodes
-from scara_gym.envs.randomization import leaf_value
+from scara_gym.envs.randomization import ParameterRanges, leaf_value
 from scara_gym.envs.task import START_REGION, draw_start
 from scara_gym.model import checks
 from scara_gym.model.params import DEFAULT_PARAMS
@@ -62,6 +63,7 @@ environments' ``randomize_start=True`` region, for training on it)"""
 SENSOR_NOISE = {"q": 1e-3, "rate": 0.01, "current": 0.02}
 """the sensor noise of "sensor-noise" (standard deviations: rad and m, rad/s and m/s, A)"""
 _START_STREAM = 0x5CA4A  # the start's generator: (seed, this), apart from the env's own draws
+_CORNER_STREAM = 0xC0C0  # a corner's generator: (seed, this)
 
 _axes = DEFAULT_PARAMS.axes
 
@@ -80,6 +82,9 @@ class Condition:
     """dotted parameter path -> value, fixed for every episode"""
     random_starts: bool = False
     """the start drawn from START_OFFSETS around the C11 start, per episode"""
+    corners: str | None = None
+    """a preset of :mod:`scara_gym.envs.randomization` whose parameters sit at a corner of its ranges,
+    drawn per episode (``corner_params``; set through the reset options)"""
     episodes: int = 100
     """the default number of episodes (1 where nothing is drawn)"""
 
@@ -87,7 +92,7 @@ class Condition:
     def deterministic(self) -> bool:
         """Nothing is drawn per episode: a deterministic policy has one episode here."""
         kwargs = self.env_kwargs
-        return not (self.random_starts or kwargs.get("randomize_target") or kwargs.get("randomize_params")
+        return not (self.random_starts or self.corners or kwargs.get("randomize_target") or kwargs.get("randomize_params")
                     or kwargs.get("sensor_noise") or kwargs.get("observation_noise"))
 
     def make_env(self, control_mode: str = "pd", env_id: str = ENV_ID, **kwargs) -> gym.Env:
@@ -108,11 +113,24 @@ class Condition:
         return dataclasses.replace(self, seed=checks.seed("seed", seed))
 
     def options(self, seed: int) -> dict | None:
-        """The reset options of the episode of ``seed``: its drawn start, where the start is drawn."""
-        if not self.random_starts:
-            return None
-        rng = np.random.default_rng((int(seed), _START_STREAM))
-        return {"start": tuple(draw_start(rng, DEFAULT_PARAMS.task.start, START_OFFSETS).tolist())}
+        """The reset options of the episode of ``seed``: its drawn start, where the start is drawn,
+        and its corner's parameters, where corners are drawn."""
+        options = {}
+        if self.random_starts:
+            rng = np.random.default_rng((int(seed), _START_STREAM))
+            options["start"] = tuple(draw_start(rng, DEFAULT_PARAMS.task.start, START_OFFSETS).tolist())
+        if self.corners:
+            options["params"] = corner_params(self.corners, seed)
+        return options or None
+
+
+def corner_params(preset: str, seed: int) -> dict[str, float]:
+    """A corner of a preset's ranges (around the C11 parameters): every path at its low or its high
+    end, each end drawn with probability 1/2 from ``seed``'s own generator (apart from the start's
+    and the environment's), so that the 2^14 corners of "all" are drawn alike."""
+    rng = np.random.default_rng((int(seed), _CORNER_STREAM))
+    ranges = ParameterRanges.preset(preset, DEFAULT_PARAMS).ranges
+    return {path: float(bounds[int(end)]) for (path, bounds), end in zip(ranges.items(), rng.integers(0, 2, len(ranges)))}
 
 
 def _starts_with(name: str, description: str, index: int, **kwargs) -> Condition:
@@ -129,6 +147,10 @@ CONDITIONS: dict[str, Condition] = {c.name: c for c in (
     Condition("random-shifts", "the C11 target, parameters drawn per episode from the 'all' ranges "
               "(load, link masses, resistances, torque constants, current limits, wall position and height)",
               EVALUATION_SEED + 3 * SEED_BAND, env_kwargs={"randomize_params": "all"}),
+    Condition("corners", "the C11 target, the parameters at a corner of the 'all' ranges drawn per episode: "
+              "each of load, link masses, resistances, torque constants, current limits, wall position and "
+              "height at one end of its range", EVALUATION_SEED + 12 * SEED_BAND,
+              env_kwargs={"randomize_params": "all"}, corners="all"),
     _starts_with("load-x2", "load mass x2 (m3L 0.5 -> 1.0 kg)", 4,
                  params={"arm.load_mass": 2 * DEFAULT_PARAMS.arm.load_mass}),
     _starts_with("wall-closer", "wall 2 cm closer to the arm's start (x_obs 0.35 -> 0.37 m)", 5,
@@ -157,7 +179,7 @@ def protocol_record(names) -> dict:
     for name in names:
         c = get_condition(name)
         out[c.name] = {"description": c.description, "seed": c.seed, "env_kwargs": dict(c.env_kwargs),
-                       "params": dict(c.params), "random_starts": c.random_starts,
+                       "params": dict(c.params), "random_starts": c.random_starts, "corners": c.corners,
                        "start_offsets": [o.tolist() for o in START_OFFSETS] if c.random_starts else None}
     return out
 

@@ -25,15 +25,46 @@ Zeilinger 2021) with a *committed* backup:
   exact model the robot therefore never touches the wall: every state it reaches lies on a
   rollout that was certified to come to rest clear of it.
 
-Models: the nominal parameters (``params``; None: the episode's own, an exact model) and, with ``robust``
-(a :class:`~scara_gym.envs.randomization.ParameterRanges` argument around them: a preset name,
-a dict path -> (low, high) or a ParameterRanges), the ranges' ends (:func:`range_ends`: every
-corner for up to three parameters, else each parameter at either end and the adverse corners,
-where every parameter whose worse end is known sits at it at once: :data:`ADVERSE_ENDS`) and
-``robust_samples`` parameter sets drawn once from the ranges. An action passes only if the backup is safe in
-every model: a certificate for the sampled models, not a proof for the whole range, which the
-property tests probe. The models share the environment's actuator line (``action_delay``,
-``action_rate_limit``), control mode, tolerances and control step.
+Models: the nominal parameters (``params``; None: the episode's own, an exact model) and, with
+``robust`` (a :class:`~scara_gym.envs.randomization.ParameterRanges` argument around them: a preset
+name, a dict path -> (low, high) or a ParameterRanges), a certificate for every robot inside the
+ranges, built in two parts (issue 53: finitely many modelled walls let the tool pass above or beyond
+them and sink into a real wall between them):
+
+- **The wall, by construction.** The obstacle's ranges (position, height, critical distance) are
+  not modelled by samples: every model gets one *zone* (:func:`wall_zone`), the band from the
+  nearest wall's plane less the largest critical distance to the farthest one's plus it, up to the
+  greatest height, ``wall_margin + dynamics_margin`` wider and higher. It holds the critical zone of
+  every wall the ranges allow, so it holds every wall. A rollout is rejected the moment a model
+  enters it (the integrator locates the critical switch; a model already inside rejects every
+  action), approached from either side; at rest the tip and the held angles' tip lie beside the
+  zone on the same side, or the tool above it. A certified rollout therefore never makes the
+  robot critical: the widened voltage, the one way the wall enters the dynamics, never acts, and
+  the wall's position and height drop out of the dynamics the models must cover.
+- **The dynamics, by models and a margin.** The other ranges (masses, resistances, torque
+  constants, current limits) are modelled by their ends (:func:`range_ends`: every corner for up
+  to three parameters, else each at either end, and the adverse corners where every parameter
+  whose worse end is known sits at it at once: :data:`ADVERSE_ENDS`) and ``robust_samples`` draws.
+  These do not bound a robot between them exactly (a faster arm also brakes harder: no corner is
+  the worst for every move), so the zone reaches ``dynamics_margin`` beyond the walls' critical
+  zones: a robot between the models is certified wherever its tip's x and its tool's height stay
+  within ``dynamics_margin`` of the range the models span at every instant of the rollout.
+
+The certificate is therefore sound over the whole range under these **assumptions**, named, not
+proved: (D) a robot inside the ranges stays within ``dynamics_margin`` (default 5 mm) of the
+models' span along every rollout (measured with docs/scripts/shield_span.py: at most 4.1 mm in the
+tip's x and 0.05 mm below in height, for 24 uniform draws at 94 certified states of 8 shielded
+adversarial episodes: within the margin, with little to spare; docs/experiments.md); (S) the
+backup's closed loop (PD on each axis) comes to rest at its set-point for every robot in the
+ranges, as it does in the models, so the real robot ends where the held angles put its tip,
+beside the zone (a geometric fact the terminal test checks); (E) the integrator finds a zone
+entry: with ``exact_switches`` False (the default) a visit shorter than one integrator step (about
+a millisecond) can go unseen, inside the margins; (L) the actuator line, control mode, tolerances
+and control step are the environment's, and the shield reads the robot's true state. Outside the
+ranges nothing is claimed. A target inside the zone cannot be reached behind the robust shield.
+Without ``robust`` the models keep their own wall (exact with ``params=None``). The models share
+the environment's actuator line (``action_delay``, ``action_rate_limit``), control mode,
+tolerances and control step.
 
 The shield reads the robot's true state from the environment, not from the (possibly noisy)
 observation, and costs up to ``1 + horizon`` model steps per model and control step (a rollout
@@ -49,6 +80,7 @@ from scara_gym.envs.task import OBSERVATION_LAYOUT, EpisodePlan, ScaraTask
 from scara_gym.model import checks
 from scara_gym.model.dynamics import tip_position
 from scara_gym.model.params import DEFAULT_PARAMS, ScaraParams, resolve_params
+from scara_gym.model.records import EV_CRITICAL_ON
 
 Q, RATES, TARGET_ERROR = (OBSERVATION_LAYOUT[name] for name in ("q", "rate", "target_error"))
 WALL_DISTANCE, HEIGHT_MARGIN = OBSERVATION_LAYOUT["wall_distance"], OBSERVATION_LAYOUT["height_margin"]
@@ -56,6 +88,7 @@ MAX_HORIZON = 1000      # [control steps]
 MAX_ROBUST_SAMPLES = 256
 REST_STEPS = 3          # consecutive steps at rest that end a rollout (not a turning point)
 LINE_TOLERANCE = 1e-3   # [action units] a flushed actuator line: its actions this close to the backup's
+DYNAMICS_MARGIN = 0.005  # [m] the robust zone's allowance for robots between the models (module docstring)
 
 
 def hold_and_climb(held: np.ndarray, target: np.ndarray, lowest_height: float = -np.inf) -> np.ndarray:
@@ -95,6 +128,46 @@ def adverse_corners(ranges: ParameterRanges) -> list[dict]:
     return corners if fixed or groups else []
 
 
+WALL_LEAVES = ("x_position", "height", "critical_distance")
+"""the obstacle's parameters: the robust shield covers their ranges by the zone (wall_zone), not by models"""
+
+
+def wall_zone(walls, margin: float) -> dict[str, float]:
+    """The obstacle overrides whose critical zone holds the critical zone of every wall in ``walls``
+    (rows of x_position, height, critical_distance [m]: the corners of a box of walls) with
+    ``margin`` [m] to spare: the band from the nearest wall's plane less the largest critical
+    distance to the farthest one's plus it, up to the greatest height. A box of walls needs only
+    its corners: a zone is the set |x - x_position| < critical_distance, height below the wall's,
+    which grows with the distance and the height, and a band holds the planes between its ends."""
+    walls = np.asarray(walls, dtype=np.float64).reshape(-1, 3)
+    if not (np.all(np.isfinite(walls)) and np.isfinite(margin) and margin >= 0):
+        raise ValueError(f"wall_zone: walls must be finite (x, height, critical distance) rows and margin >= 0, "
+                         f"got {walls.tolist()!r} and {margin!r}")
+    low, high = walls[:, 0].min(), walls[:, 0].max()
+    return {"obstacle.x_position": 0.5 * (low + high),
+            "obstacle.critical_distance": 0.5 * (high - low) + walls[:, 2].max() + margin,
+            "obstacle.height": walls[:, 1].max() + margin}
+
+
+def split_ranges(ranges: ParameterRanges) -> tuple[dict, dict]:
+    """(the obstacle's ranges (WALL_LEAVES), the others'): the zone covers the first, models the second."""
+    wall = {path: r for path, r in ranges.ranges.items() if path.startswith("obstacle.")}
+    return wall, {path: r for path, r in ranges.ranges.items() if path not in wall}
+
+
+def wall_corners(nominal: ScaraParams, wall_ranges: dict) -> list[tuple[float, float, float]]:
+    """(x_position, height, critical_distance) of the nominal wall and of every corner of the
+    obstacle's ranges (path -> (low, high); its other paths, the widened voltages, act only inside
+    the critical zone, which a certified rollout never enters)."""
+    ends = [wall_ranges.get(f"obstacle.{leaf}", (getattr(nominal.obstacle, leaf),) * 2) for leaf in WALL_LEAVES]
+    return [wall_row(nominal), *((x, h, d) for x in ends[0] for h in ends[1] for d in ends[2])]
+
+
+def wall_row(params: ScaraParams) -> tuple[float, float, float]:
+    """The wall of ``params`` as a row of wall_zone: (x_position, height, critical_distance) [m]."""
+    return tuple(getattr(params.obstacle, leaf) for leaf in WALL_LEAVES)
+
+
 def range_ends(ranges: ParameterRanges) -> list[dict]:
     """The robust shield's fixed models: every corner of the ranges (each path at either end)
     for up to MAX_CORNER_PATHS paths; else each path at either end with the others nominal, and
@@ -127,23 +200,29 @@ class Shield:
         climb_margin: how far above the highest wall the backup drives axis 3 [m].
         robust (str | dict | ParameterRanges | None): parameter ranges to certify the backup for as well (a preset name, a dict
             path -> (low, high) or a ParameterRanges); None: the nominal model only.
-        robust_samples: parameter sets drawn from the ranges beside their ends.
-        robust_seed: the seed of those draws."""
+        robust_samples: parameter sets drawn from the ranges (the obstacle's aside: the zone covers them) beside their ends.
+        robust_seed: the seed of those draws.
+        dynamics_margin: how far beyond the walls' critical zones the robust zone reaches for robots
+            between the models [m] (assumption D of the module docstring)."""
 
     def __init__(self, env, policy, params: ScaraParams | None = DEFAULT_PARAMS, horizon: int = 200,
                  rest_rate: float = 0.02, hold_tolerance: float = 0.01, wall_margin: float = 0.005,
-                 climb_margin: float = 0.01, robust=None, robust_samples: int = 8, robust_seed: int = 0) -> None:
+                 climb_margin: float = 0.01, robust=None, robust_samples: int = 8, robust_seed: int = 0,
+                 dynamics_margin: float = DYNAMICS_MARGIN) -> None:
         self.env = env.unwrapped
         self.horizon = checks.integer("horizon", horizon, 1, MAX_HORIZON)
         for name, value in (("rest_rate", rest_rate), ("hold_tolerance", hold_tolerance),
                             ("wall_margin", wall_margin), ("climb_margin", climb_margin)):
             if not (checks.is_real(value) and np.isfinite(value) and 0 < value <= 1):
                 raise ValueError(f"{name} must be a finite number in (0, 1], got {value!r}")
+        self.dynamics_margin = checks.real("dynamics_margin", dynamics_margin, 0.0, 1.0, unit="m")
         self.rest_rate, self.hold_tolerance = float(rest_rate), float(hold_tolerance)
         self.wall_margin, self.climb_margin = float(wall_margin), float(climb_margin)
         if self.climb_margin < self.wall_margin:
             raise ValueError(f"climb_margin ({climb_margin!r} m) must be at least wall_margin ({wall_margin!r} m): the "
                              "backup climbs to where its terminal set counts the tool as above the wall")
+        self.zone_margin = self.wall_margin + self.dynamics_margin
+        """how far the robust shield's zone reaches beyond every wall's critical zone [m]"""
         self.policy = policy
         arguments = self.env.task.arguments
         nominal = arguments["params"] if params is None else params
@@ -157,24 +236,34 @@ class Shield:
             if ranges is None:
                 raise ValueError(text)
             robust_samples = checks.integer("robust_samples", robust_samples, 1, MAX_ROBUST_SAMPLES)
+        wall_ranges, physics = split_ranges(ranges) if ranges is not None else ({}, {})
+        physics = ParameterRanges(physics) if physics else None
+        self.zone, self.walls = None, []
+        """with robust: the obstacle overrides of every model (wall_zone over the nominal wall and the
+        obstacle's ranges, wall_margin to spare): a rollout that enters the zone is rejected"""
+        if ranges is not None:
+            self.walls = wall_corners(resolve_params(nominal), wall_ranges)
+            self.zone = wall_zone(self.walls, self.zone_margin)
+        count = 1 + (len(range_ends(physics)) + robust_samples if physics is not None else 0)
         self.model_task = ScaraTask(**{**arguments, "params": nominal, "randomize_target": False,
-                                       "randomize_params": ranges if ranges is not None else False,
-                                       "observation_noise": None,
-                                       "num_robots": 1 + (len(range_ends(ranges)) + robust_samples
-                                                          if ranges is not None else 0)})
+                                       "randomize_params": physics if physics is not None else False,
+                                       "observation_noise": None, "num_robots": count})
         task = self.model_task
         self.exact = params is None  # the first model takes each episode's own parameters
         self.model_params = [task.params]
-        if ranges is not None:
+        if physics is not None:
             rng = np.random.default_rng(checks.seed("robust_seed", robust_seed))
-            self.model_params += [task.params.replace(v) for v in range_ends(ranges)]
-            self.model_params += [task.params.replace(ranges.draw(rng)) for _ in range(robust_samples)]
+            self.model_params += [task.params.replace(v) for v in range_ends(physics)]
+            self.model_params += [task.params.replace(physics.draw(rng)) for _ in range(robust_samples)]
+        if self.zone is not None:
+            self.model_params = [p.replace(self.zone) for p in self.model_params]
         self.params = task.params
         self.lowest_height = max(p.obstacle.height for p in self.model_params) + self.climb_margin
         self.name = f"{getattr(policy, 'name', 'policy')} + shield"
         self.interventions = 0
         self._episode = None        # (target, first model's parameters) the models' episodes hold for
         self._committed: dict = {}  # robot index -> the certified backup's set-point
+        self._own = None            # (an episode's parameters, the exact model's: theirs with the zone)
 
     def reset(self) -> None:
         if self.policy is not None:
@@ -196,7 +285,9 @@ class Shield:
         p = task.robot_params[:len(obs)]
         hold_x = np.array([tip_position(setpoint[0], setpoint[1], setpoint[2], record)[0] for record in p])
         hold_distance = hold_x - p["wall_x"]  # where the held angles put the tip
-        beside = (np.abs(obs[:, WALL_DISTANCE]) >= self.wall_margin) & (np.abs(hold_distance) >= self.wall_margin) \
+        # beside the wall's plane, or with a zone beside the zone (whose width holds the margin)
+        clearance = self.wall_margin if self.zone is None else p["critical_distance"]
+        beside = (np.abs(obs[:, WALL_DISTANCE]) >= clearance) & (np.abs(hold_distance) >= clearance) \
             & (np.sign(hold_distance) == np.sign(obs[:, WALL_DISTANCE]))
         above = obs[:, HEIGHT_MARGIN] >= self.wall_margin
         return still & held & (beside | above)
@@ -212,11 +303,27 @@ class Shield:
             flushed &= np.all(np.abs(line.pending - actions[:, None, :]) < LINE_TOLERANCE, axis=(1, 2))
         return flushed
 
+    def _entered_zone(self, active: np.ndarray) -> bool:
+        """Whether an active model was inside its zone at any instant of its last step: critical at
+        its end, or a critical switch located during it (the integrator's event log; a log that
+        overflowed counts as entered)."""
+        robots, log = self.model_task.robots, self.model_task.log
+        events = robots["n_events"]
+        if np.any(robots["critical"][active] == 1) or np.any(events[active] > log.shape[1]):
+            return True
+        logged = np.arange(log.shape[1]) < events[:, None]
+        return bool(np.any(((log["code"] == EV_CRITICAL_ON) & logged)[active]))
+
     def _begin(self, snapshot: dict) -> list:
         """The models' parameters for this snapshot, their episodes begun where the target or
         the exact model's parameters changed."""
         task = self.model_task
-        params = [snapshot["params"], *self.model_params[1:]] if self.exact else self.model_params
+        own = snapshot["params"]
+        if self.exact and self.zone is not None:  # the zone holds the episode's own wall as well
+            if self._own is None or self._own[0] is not own:
+                self._own = (own, own.replace(wall_zone([*self.walls, wall_row(own)], self.zone_margin)))
+            own = self._own[1]
+        params = [own, *self.model_params[1:]] if self.exact else self.model_params
         target = np.asarray(snapshot["target"], dtype=np.float64)
         if self._episode is None or not np.array_equal(self._episode[0], target) or (
                 self._episode[1] is not params[0] and self._episode[1] != params[0]):
@@ -233,6 +340,8 @@ class Shield:
         m = task.num_robots
         for i, p in enumerate(self._begin(snapshot)):
             task.restore(i, {**snapshot, "params": p})
+        if self.zone is not None and np.any(task.robots["critical"] == 1):
+            return False  # already inside the zone: nothing from here is certified
         setpoint = self.backup_setpoint(snapshot)
         active = np.ones(m, dtype=bool)
         rested = np.zeros(m, dtype=int)
@@ -243,7 +352,7 @@ class Shield:
                 task.step_robot(0, actions[0])
             else:
                 task.step_robots(active, actions, parallel=False)
-            if np.any(outcomes["collisions"][active] > 0):
+            if np.any(outcomes["collisions"][active] > 0) or (self.zone is not None and self._entered_zone(active)):
                 return False
             actions = np.ascontiguousarray(np.broadcast_to(
                 task.setpoint_action(task.obs.astype(np.float64), setpoint), (m, 3)))

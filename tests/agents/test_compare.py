@@ -271,6 +271,18 @@ def test_conditions_compared_in_parallel_give_the_sequential_entries():
     assert parallel == sequential and set(traces) == {"c11", "wall-closer"}
 
 
+def test_the_corners_condition_is_scored_like_random_shifts_with_the_robust_shield_among_the_rows():
+    """corners (issue 53) is one of the protocol's conditions, so the comparison's condition list holds
+    it; its parameters vary, so PD behind the robust shield is scored there as in random-shifts. A
+    condition without corners keeps its cache key."""
+    entries, _ = comparison.compare(None, ["corners"], episodes=1, verbose=False, heuristics=HEURISTICS,
+                                    include_optimal=False, include_mpc=False)
+    assert {e["condition"] for e in entries} == {"corners"}
+    assert {"pd", "pd + shield", comparison.ROBUST_LABEL} <= {e["name"] for e in entries}
+    assert "corners" not in evaluation.condition_description(CONDITIONS["random-shifts"], 1)[0]
+    assert evaluation.condition_description(CONDITIONS["corners"], 1)[0]["corners"] == "all"
+
+
 def test_a_fine_tuned_variant_starts_from_its_base_run_and_counts_its_training_time(tmp_path):
     algo = "torch-ppo-residual-random-safe-fast"
     out = run_folders.run_dir(tmp_path, LATEST_ENV_ID, "pd", algo, 3)

@@ -129,3 +129,27 @@ def test_evaluate_takes_a_plain_callable_and_refuses_bad_arguments_by_name():
         protocol.evaluate("c11", lambda env: (lambda obs: np.zeros(3)), episodes=1, record=-1)
     with pytest.raises(TypeError, match="env_kwargs must be a mapping of environment arguments or None, got 'x'"):
         protocol.evaluate("c11", lambda env: (lambda obs: np.zeros(3)), episodes=1, env_kwargs="x")
+
+
+def test_the_corners_condition_puts_every_parameter_at_an_end_of_its_range():
+    """corners (issue 53): every parameter of the "all" ranges at its low or high end, the ends drawn
+    per episode from the condition's own seeds, beside random-shifts (the same ranges, drawn inside)."""
+    from scara_gym.envs.randomization import ParameterRanges
+
+    corners = protocol.CONDITIONS["corners"]
+    ranges = ParameterRanges.preset("all", DEFAULT_PARAMS).ranges
+    assert corners.seed == protocol.EVALUATION_SEED + 12 * protocol.SEED_BAND and not corners.deterministic
+    assert corners.env_kwargs == protocol.CONDITIONS["random-shifts"].env_kwargs  # observation bounds alike
+    env = corners.make_env()
+    drawn = []
+    for seed in corners.seeds(30):
+        params = env.reset(seed=seed, options=corners.options(seed))[1]["params"]
+        assert params == corners.options(seed)["params"] and set(params) == set(ranges)
+        assert all(params[path] in bounds for path, bounds in ranges.items())
+        assert env.unwrapped.episode_params == DEFAULT_PARAMS.replace(params)
+        drawn.append(tuple(params.values()))
+    assert len(set(drawn)) == 30
+    assert all({row[i] for row in drawn} == set(bounds) for i, bounds in enumerate(ranges.values()))  # both ends
+    assert protocol.protocol_record(["corners"])["corners"]["corners"] == "all"
+    result = protocol.evaluate("corners", lambda env: Hold(env), episodes=2)
+    assert result["condition"] == "corners" and len(result["success"]) == 2
