@@ -56,6 +56,7 @@ from scara_gym import __version__
 from scara_gym.benchmark.episodes import run_episodes
 from scara_gym.benchmark.protocol import evaluate, tuning
 from scara_gym.envs.task import REWARD_TERMS
+from scara_gym.extras import require
 from scara_gym.model import checks
 from scara_gym.registration import ENV_IDS
 
@@ -167,6 +168,7 @@ def _environment(name: str, metadata: dict) -> gym.Env:
 
 def _spaces(name: str, metadata: dict, env: gym.Env) -> tuple:
     """(observation space, action space) of a dataset: its metadata's, which must be its environment's."""
+    require("minari")
     from minari.serialization import deserialize_space
 
     spaces = []
@@ -189,6 +191,7 @@ def load(name: str):
     names: its files checked against its manifest where it has one (the datasets the package
     builds), its environment made from the package's registry (:func:`_environment`) and its spaces
     checked against that environment's. FileNotFoundError where it is not there."""
+    require("minari")
     import minari
     from minari.dataset._storages import get_minari_storage
     from minari.storage import get_dataset_path
@@ -304,6 +307,7 @@ class Alternating:
 def episode_buffers(env, policy, seeds) -> list:
     """One Minari EpisodeBuffer per seed: the policy's episode from ``env.reset(seed=seed)``, with
     the step infos kept (the reset's row of each holds zeros)."""
+    require("minari")
     from minari.data_collector import EpisodeBuffer
 
     buffers = []
@@ -375,6 +379,7 @@ def rollout_recorder():
     """A torch PPO hook (agents.algorithms.torch_ppo_hooks.Hook: built here, torch being the
     train extra's) that keeps every episode the training rollouts complete, as EpisodeBuffers
     (the medium-replay tier) in its ``episodes``."""
+    require("minari")
     from minari.data_collector import EpisodeBuffer
 
     from agents.algorithms.torch_ppo_hooks import Hook
@@ -503,6 +508,7 @@ def _refuse_existing(name: str) -> None:
 def _create_atomically(name: str, arguments: dict):
     """minari.create_dataset_from_buffers(name, **arguments), written in a staging folder beside
     the dataset's place and renamed into it whole: a crash leaves no half dataset under its id."""
+    require("minari")
     import minari
     from minari.namespace import create_namespace, list_local_namespaces
 

@@ -129,3 +129,19 @@ def test_evaluate_takes_a_plain_callable_and_refuses_bad_arguments_by_name():
         protocol.evaluate("c11", lambda env: (lambda obs: np.zeros(3)), episodes=1, record=-1)
     with pytest.raises(TypeError, match="env_kwargs must be a mapping of environment arguments or None, got 'x'"):
         protocol.evaluate("c11", lambda env: (lambda obs: np.zeros(3)), episodes=1, env_kwargs="x")
+
+
+def test_evaluate_scores_a_plain_function_given_as_policy_as_its_factory_would():
+    """policy=: a function obs -> action, no factory needed; the same episodes as the factory's."""
+    def hold(obs):
+        return np.zeros(3)
+
+    given = protocol.evaluate("c11-starts", policy=hold, episodes=2)
+    made = protocol.evaluate("c11-starts", lambda env: hold, episodes=2)
+    assert given["condition"] == "c11-starts"
+    for key in ("success", "collisions", "energy", "return"):
+        np.testing.assert_array_equal(given[key], made[key])
+    with pytest.raises(TypeError, match="one of policy_factory .* and policy .*, got both"):
+        protocol.evaluate("c11", lambda env: hold, policy=hold, episodes=1)
+    with pytest.raises(TypeError, match="got neither"):
+        protocol.evaluate("c11", episodes=1)
