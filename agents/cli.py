@@ -28,6 +28,7 @@ import sys
 from pathlib import Path
 
 from agents.algorithms.bc_config import BCConfig
+from agents.algorithms.progress import saved_to
 from agents.algorithms.sb3.hyperparams import load_hyperparams, numba_threads
 from agents.algorithms.sb3.policy import resolve_model
 from agents.algorithms.torch_ppo_config import SEED_MAX, Config, parse_floats, parse_reward_weights
@@ -43,7 +44,6 @@ from agents.experiments.targets import target_checks
 from agents.files import TRUST_ENV, RunLocked, write_json
 from agents.policies.optimal import CollocationConfig
 from agents.policies.optimal.policy import solve_reference
-from agents.progress import saved_to
 from scara_gym import DEFAULT_PARAMS
 from scara_gym.benchmark.protocol import CONDITIONS, ENV_ID, FIXED_SHIFTS, protocol_record
 from scara_gym.extras import missing_extra_message, require

@@ -32,6 +32,7 @@ require("torch")
 import torch
 from torch import nn
 
+from agents.algorithms.progress import Progress
 from agents.algorithms.torch_ppo_config import Config
 from agents.algorithms.torch_ppo_hooks import Hook, hooks_for
 from agents.files import (
@@ -45,7 +46,6 @@ from agents.files import (
     write_digests,
     write_json,
 )
-from agents.progress import Progress
 from scara_gym.benchmark.protocol import SENSOR_NOISE
 from scara_gym.wrappers import ResidualSetpoint, Shield
 

@@ -7,7 +7,7 @@ from pathlib import Path
 import pytest
 import yaml
 
-from agents import progress
+from agents.algorithms import progress
 from agents.algorithms.sb3.hyperparams import HYPERPARAMS
 from agents.algorithms.sb3.training import DEFAULT_TORCH_THREADS
 from agents.algorithms.torch_ppo_config import Config

@@ -39,6 +39,7 @@ from pathlib import Path
 
 import numpy as np
 
+from agents.algorithms.progress import Progress
 from agents.algorithms.sb3.hyperparams import check_hyperparams, load_hyperparams
 from agents.algorithms.sb3.policy import SHIPPED_MODELS, algorithm_class, residual_mapping
 from agents.files import (
@@ -51,7 +52,6 @@ from agents.files import (
     write_digests,
     write_json,
 )
-from agents.progress import Progress
 from scara_gym.benchmark.protocol import ENV_ID
 from scara_gym.extras import require
 from scara_gym.model import checks
@@ -182,7 +182,7 @@ def _progress_callback(total: int):
     from stable_baselines3.common.callbacks import BaseCallback
 
     class ShowProgress(BaseCallback):
-        """The progress line (agents.progress): the last 100 episodes' return and success (SB3's
+        """The progress line (agents.algorithms.progress): the last 100 episodes' return and success (SB3's
         buffers, filled from the env's Monitor-style infos)."""
 
         def _on_training_start(self) -> None:
