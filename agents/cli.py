@@ -28,6 +28,7 @@ import sys
 from pathlib import Path
 
 from agents.algorithms.bc_config import BCConfig
+from agents.algorithms.progress import saved_to
 from agents.algorithms.sb3.hyperparams import load_hyperparams, numba_threads
 from agents.algorithms.sb3.policy import resolve_model
 from agents.algorithms.torch_ppo_config import SEED_MAX, Config, parse_floats, parse_reward_weights
@@ -45,6 +46,7 @@ from agents.policies.optimal import CollocationConfig
 from agents.policies.optimal.policy import solve_reference
 from scara_gym import DEFAULT_PARAMS
 from scara_gym.benchmark.protocol import CONDITIONS, ENV_ID, FIXED_SHIFTS, protocol_record
+from scara_gym.extras import missing_extra_message, require
 from scara_gym.registration import ENV_IDS
 
 MODES = ("pd", "voltage")
@@ -144,6 +146,7 @@ def _evaluate(args, argv) -> list[dict]:
 def _yaml_value(text: str):
     """A --set value as YAML reads it, but a number written as 1e-4 is a number (YAML 1.1, which
     PyYAML reads, takes only 1.0e-4)."""
+    require("yaml")
     import yaml
 
     value = yaml.safe_load(text)
@@ -241,9 +244,11 @@ def _train(args, argv) -> Path:
                 raise UserError(f"--set names {unknown} that the YAML block lacks; it has {sorted(hyper)}")
             hyper.update({k: _yaml_value(v) for k, v in overrides.items()})
     out = args.out or Path("runs") / args.name / f"seed{args.seed}"
-    return train_run(args.name, out, args.seed, args.env_id, args.control_mode, args.total_timesteps, hyper,
-                     command="scara-agents " + " ".join(argv), randomize_target=args.randomize_target,
-                     resume=args.resume, overwrite=args.overwrite)
+    folder = train_run(args.name, out, args.seed, args.env_id, args.control_mode, args.total_timesteps, hyper,
+                       command="scara-agents " + " ".join(argv), randomize_target=args.randomize_target,
+                       resume=args.resume, overwrite=args.overwrite)
+    saved_to(folder)
+    return folder
 
 
 def _add_torch_ppo(sub) -> None:
@@ -280,6 +285,7 @@ def _torch_ppo(args, argv) -> dict:
         raise UserError(f"--resume: {config.out} holds no checkpoint.pt to resume from")
     summary = train(config, resume=args.resume, overwrite=args.overwrite)
     print(json.dumps(summary, indent=2))
+    saved_to(config.out)
     return summary
 
 
@@ -357,6 +363,11 @@ def _compare(args, argv) -> list[dict]:
         raise UserError(f"--shield names {unknown}, which are not registered runs; they are {sorted(RUNS)}")
     if not args.runs.is_dir():
         raise UserError(f"--runs: no folder {str(args.runs)!r} (the learned runs, ENV_ID/MODE/NAME/seedN)")
+    # the statistics run after hours of episodes, the MPC and the optimal replay need CasADi: a
+    # missing extra is said before any episode
+    require("rliable")
+    if not (args.no_mpc and args.no_optimal):
+        require("casadi")
     entries, traces = compare_in_parallel(args.runs, args.conditions, args.jobs, episodes=args.episodes,
                                           include_optimal=not args.no_optimal, cache=args.cache,
                                           shielded=tuple(args.shield), pilots=args.pilots,
@@ -392,6 +403,7 @@ def _curves(args, argv) -> dict:
     _positive("--episodes", args.episodes)
     if args.runs is not None and not args.runs.is_dir():
         raise UserError(f"--runs: no folder {str(args.runs)!r} (the learned runs, ENV_ID/MODE/NAME/seedN)")
+    require("rliable")  # the curves' intervals, computed after the episodes: said before them
     data = robustness_curves(args.runs, args.episodes, cache=args.cache, robust_shield=args.robust_shield)
     data["command"] = "scara-agents " + " ".join(argv)
     write_curves(data, args.out)
@@ -540,10 +552,7 @@ def _datasets(args, argv):
     if not args.name:
         raise UserError("datasets build needs a dataset id or 'all' (scara-agents datasets list names them)")
     _positive("--episodes", args.episodes)
-    try:
-        import minari  # noqa: F401
-    except ImportError:
-        raise UserError("datasets need Minari: pip install 'scara_gym[datasets]'") from None
+    require("minari")
     if args.name == "all":
         return datasets.build_all(args.episodes, args.out, args.runs, summary=args.summary)
     return datasets.build(args.name, args.episodes, args.out, args.runs)
@@ -595,6 +604,12 @@ def run(argv: list[str] | None = None):
 def _run_handler(args, argv):
     try:
         return args.handler(args, argv)
+    except ImportError as error:  # an optional module of an extra: one line naming the extra
+        message = missing_extra_message(error.name) if isinstance(error, ModuleNotFoundError) else None
+        if message is None or args.debug:
+            raise
+        print(f"scara-agents {args.command}: error: {message}", file=sys.stderr)
+        raise SystemExit(2) from None
     except (UserError, ValueError, TypeError, FileNotFoundError, KeyError, LookupError, RunLocked) as error:
         if args.debug:
             raise

@@ -43,6 +43,8 @@ from pathlib import Path
 
 import numpy as np
 
+from scara_gym.extras import require
+
 
 def write_atomic(path: str | Path, data: bytes | str) -> Path:
     """Write ``data`` to ``path`` through a temporary file beside it, flushed to disk and renamed
@@ -72,6 +74,7 @@ def write_json(path: str | Path, value, indent: int | None = 2) -> Path:
 
 def save_torch(value, path: str | Path) -> Path:
     """``torch.save`` of ``value``, atomically."""
+    require("torch")
     import torch
 
     buffer = io.BytesIO()
@@ -86,6 +89,7 @@ def load_torch(path: str | Path, map_location="cpu", data: bytes | None = None):
     them, ``path`` only naming the file."""
     import pickle
 
+    require("torch")
     import torch
 
     try:

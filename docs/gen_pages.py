@@ -91,8 +91,30 @@ def headline_table(comparison: Path = DOCS / "results" / "comparison.json") -> s
     """The headline table of the comparison's JSON (the README's, too)."""
     from agents.experiments import report
 
-    entries = json.loads(comparison.read_text())["policies"]
-    return report.overview(entries, report.HEADLINE_CONDITIONS)
+    data = json.loads(comparison.read_text())
+    entries = data["policies"]
+    return report.overview(entries, report.HEADLINE_CONDITIONS) + "\n" + headline_legend(data)
+
+
+def headline_legend(data: dict) -> str:
+    """What the headline table was scored on, over how many episodes, and what its marks mean
+    (from the comparison's JSON, so that a republication updates it)."""
+    from agents.experiments import report
+    from agents.experiments.statistics import TIME_LIMIT
+
+    shown = [e for e in data["policies"] if e["condition"] in report.HEADLINE_CONDITIONS]
+    episodes = sorted({e["episodes"] for e in shown if e["condition"] != "c11"})
+    seeds = sorted({len(e["seeds"]) for e in shown if e["seeds"]})
+    counts = " or ".join(str(n) for n in episodes)
+    return (f"Scored on `{data['env_id']}`: {counts} episodes per condition (and per training seed of a learned "
+            f"policy, {seeds[0]}-{seeds[-1]} seeds), on the condition's evaluation seeds; c11 is one "
+            "deterministic episode, run once per distinct outcome. A cell is the interquartile mean (IQM) of "
+            f"the time to target, an episode that misses the target counting as the time limit, "
+            f"{TIME_LIMIT:.3f} s; so \"{TIME_LIMIT:.3f} s\" means that the middle half of the times are all the limit "
+            "(about three quarters of the episodes or more missed the target). \"-\": no episode reached the target. \"n/a\": the policy is not scored in that "
+            "condition (the optimal replay exists for the C11 start, target and parameters only; the robust "
+            "shield is scored where the parameters are drawn). (success rate / collision rate) where not every "
+            "episode succeeds without a collision.\n")
 
 
 def with_headline(text: str, table: str) -> str:

@@ -22,6 +22,10 @@ import time
 from pathlib import Path
 
 import numpy as np
+
+from scara_gym.extras import require
+
+require("torch")
 import torch
 from torch import nn
 

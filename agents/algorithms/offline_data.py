@@ -19,6 +19,7 @@ import gymnasium as gym
 import numpy as np
 
 from agents.files import verify_digests
+from scara_gym.extras import require
 from scara_gym.registration import ENV_IDS
 
 DATASET_FILES = ("data/metadata.json", "data/main_data.hdf5")
@@ -51,6 +52,7 @@ def _environment(name: str, metadata: dict) -> gym.Env:
 
 def _spaces(name: str, metadata: dict, env: gym.Env) -> tuple:
     """(observation space, action space) of a dataset: its metadata's, which must be its environment's."""
+    require("minari")
     from minari.serialization import deserialize_space
 
     spaces = []
@@ -73,6 +75,7 @@ def load(name: str):
     names: its files checked against its manifest where it has one (the datasets the package
     builds), its environment made from the package's registry (:func:`_environment`) and its spaces
     checked against that environment's. FileNotFoundError where it is not there."""
+    require("minari")
     import minari
     from minari.dataset._storages import get_minari_storage
     from minari.storage import get_dataset_path

@@ -25,9 +25,14 @@ from pathlib import Path
 
 import gymnasium as gym
 import numpy as np
+
+from scara_gym.extras import require
+
+require("torch")
 import torch
 from torch import nn
 
+from agents.algorithms.progress import Progress
 from agents.algorithms.torch_ppo_config import Config
 from agents.algorithms.torch_ppo_hooks import Hook, hooks_for
 from agents.files import (
@@ -275,6 +280,7 @@ def train(config: Config, resume: bool = False, hooks: list[Hook] | None = None,
 
 
 def _train(config: Config, resume: bool, hooks: list[Hook] | None) -> dict:
+    require("torch")
     from torch.utils.tensorboard import SummaryWriter
 
     out = Path(config.out)
@@ -348,6 +354,7 @@ def _train(config: Config, resume: bool, hooks: list[Hook] | None) -> dict:
     obs = tensor(obs, device)
     done = torch.zeros(n, device=device)
     started = time.perf_counter()
+    progress = Progress(num_updates * config.batch_size, start_step=global_step)
     for update in range(start_update, num_updates + 1):
         if config.anneal_lr:
             optimizer.lr = config.learning_rate * (1.0 - (update - 1.0) / num_updates)
@@ -441,10 +448,9 @@ def _train(config: Config, resume: bool, hooks: list[Hook] | None) -> dict:
             save_torch({"agent": agent.state_dict(), "optimizer": optimizer.state_dict(),
                         "return_rms": return_rms.state_dict(), "update": update, "global_step": global_step,
                         "train_seconds": elapsed}, checkpoint)
-            recent = {k: v[-100:] for k, v in finished.items()}
-            print(f"update {update}/{num_updates}  steps {global_step}  "
-                  f"success {np.mean(recent['success']) if recent['success'] else float('nan'):.2f}  "
-                  f"{global_step / max(elapsed, 1e-9):.0f} steps/s", flush=True)
+        # the last 100 episodes' return and success, at most every 10 s and at the end
+        progress.report(global_step, finished["return"][-100:], finished["success"][-100:],
+                        final=update == num_updates)
     writer.close()
     envs.close()
     elapsed = train_seconds + time.perf_counter() - started

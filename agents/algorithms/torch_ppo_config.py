@@ -49,7 +49,11 @@ class Config:
     normalize_reward: bool = True  # scale rewards by the running std of the discounted return
     clip_obs: float = 10.0
     env_threads: int = 1           # numba threads of the CPU env (torch takes the cores between steps)
-    torch_threads: int = 0         # 0: torch's default
+    # torch's threads: 1 per run. Its minibatches are tiny (2,048 / 32 samples), so more threads
+    # only add synchronization, and torch's default (one per core) collapses as soon as another
+    # process wants a core: on 2 cores 252 against 7,192 steps/s (docs/experiments.md, 2026-12-05).
+    # 0: torch's default.
+    torch_threads: int = 1
     compile: bool = False          # torch.compile the minibatch gradient
     checkpoint_every: int = 10     # updates between checkpoints
     init_log_std: float = 0.0      # the policy's initial log standard deviation

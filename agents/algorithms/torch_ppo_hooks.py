@@ -15,6 +15,10 @@ from __future__ import annotations
 
 import gymnasium as gym
 import numpy as np
+
+from scara_gym.extras import require
+
+require("torch")
 import torch
 
 from agents.algorithms.torch_ppo_config import Config

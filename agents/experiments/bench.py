@@ -11,6 +11,7 @@ from agents.algorithms.sb3.hyperparams import load_hyperparams
 from agents.algorithms.torch_ppo import Config, train
 from scara_gym.benchmark.bench import gpu_available
 from scara_gym.benchmark.protocol import ENV_ID
+from scara_gym.extras import require
 
 
 def bench_ppo(device: str = "cpu", num_envs: int = 16, num_steps: int = 128, total_timesteps: int = 32768,
@@ -25,6 +26,7 @@ def bench_ppo(device: str = "cpu", num_envs: int = 16, num_steps: int = 128, tot
                         update_epochs=10, total_timesteps=total_timesteps, checkpoint_every=10**9, out=out)
         figures = {"torch_ppo": train(config)["steps_per_second"]}
     if sb3:
+        require("stable_baselines3")
         from stable_baselines3 import PPO
         from stable_baselines3.common.vec_env import VecNormalize
 
@@ -43,6 +45,7 @@ def bench_ppo(device: str = "cpu", num_envs: int = 16, num_steps: int = 128, tot
 def bench_her(updates: int = 1000, repeats: int = 2) -> list[tuple[str, float]]:
     """Milliseconds per SAC + HER update on Scara-C11-Goal-v0 (sac.yml's block) with SB3's buffer and
     agents.algorithms.sb3.her's, alternated, so that both see the same machine load."""
+    require("torch")
     import torch
 
 
@@ -67,6 +70,7 @@ def bench_her(updates: int = 1000, repeats: int = 2) -> list[tuple[str, float]]:
 def main(quick: bool = False, her: bool = False, gpu: bool = False, env_ids: tuple[str, ...] = (ENV_ID,)) -> str:
     """The benchmark's report: CPU PPO on each of ``env_ids`` in turn, in one sitting (and GPU PPO
     where a CUDA device is usable, and HER)."""
+    require("torch")
     import torch
 
     lines = []

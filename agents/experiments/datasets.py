@@ -64,6 +64,7 @@ from scara_gym import __version__
 from scara_gym.benchmark.episodes import run_episodes
 from scara_gym.benchmark.protocol import evaluate, tuning
 from scara_gym.envs.task import REWARD_TERMS
+from scara_gym.extras import require
 from scara_gym.model import checks
 
 CONTROL_MODE = "pd"
@@ -179,6 +180,7 @@ class Alternating:
 def episode_buffers(env, policy, seeds) -> list:
     """One Minari EpisodeBuffer per seed: the policy's episode from ``env.reset(seed=seed)``, with
     the step infos kept (the reset's row of each holds zeros)."""
+    require("minari")
     from minari.data_collector import EpisodeBuffer
 
     buffers = []
@@ -250,6 +252,7 @@ def rollout_recorder():
     """A torch PPO hook (agents.algorithms.torch_ppo_hooks.Hook: built here, torch being the
     train extra's) that keeps every episode the training rollouts complete, as EpisodeBuffers
     (the medium-replay tier) in its ``episodes``."""
+    require("minari")
     from minari.data_collector import EpisodeBuffer
 
     from agents.algorithms.torch_ppo_hooks import Hook
@@ -373,6 +376,7 @@ def _refuse_existing(name: str) -> None:
 def _create_atomically(name: str, arguments: dict):
     """minari.create_dataset_from_buffers(name, **arguments), written in a staging folder beside
     the dataset's place and renamed into it whole: a crash leaves no half dataset under its id."""
+    require("minari")
     import minari
     from minari.namespace import create_namespace, list_local_namespaces
 

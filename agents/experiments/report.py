@@ -12,6 +12,7 @@ from agents.experiments.statistics import interval_estimates, rate_text
 from agents.experiments.targets import target_checks
 from scara_gym import DEFAULT_PARAMS
 from scara_gym.benchmark.protocol import CONDITIONS
+from scara_gym.extras import require
 
 
 def _pyplot():
@@ -268,6 +269,7 @@ def comparison_figures(entries: list[dict], traces: dict, groups: dict, out: Pat
             n = min(len(d["timesteps"]) for d in data)
             curves[f"{algorithm} ({mode})"] = (data[0]["timesteps"][:n], np.array([d["results"][:n].mean(axis=1) for d in data]))
     if curves:
+        require("rliable")
         from rliable import metrics
 
         fig, ax = plt.subplots(figsize=(7, 4))

@@ -7,6 +7,8 @@ import warnings
 
 import numpy as np
 
+from scara_gym.extras import require
+
 TIME_LIMIT = 3.0  # s, the registered episode limit: the time of an episode that never arrives
 
 
@@ -17,6 +19,7 @@ def time_scores(runs: list[dict]) -> np.ndarray:
 
 def interval_estimates(scores: dict, function, reps: int, seed: int):
     """rliable's point estimates and 95 % stratified-bootstrap intervals."""
+    require("rliable")
     from rliable import library as rly
 
     with warnings.catch_warnings():  # rliable passes arch a RandomState, which arch deprecates
@@ -28,6 +31,7 @@ def iqm_with_ci(scores: np.ndarray, reps: int = 2000, seed: int = 0) -> tuple[fl
     """rliable's IQM over runs x tasks and its 95 % stratified-bootstrap interval. One run (a
     classical policy): its episodes are the samples the bootstrap draws (rliable's stratified
     bootstrap resamples runs within each task, which one run cannot show any spread of)."""
+    require("rliable")
     from rliable import metrics
 
     scores = np.asarray(scores)

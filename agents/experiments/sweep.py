@@ -42,10 +42,12 @@ from agents.experiments.runs import hyperparams_of, is_finished, publish, run_di
 from agents.experiments.statistics import entry
 from agents.files import json_record, save_arrays
 from scara_gym.benchmark.protocol import evaluate, get_condition, tuning
+from scara_gym.extras import require
 
 
 def parse_grid(items: list[str]) -> dict[str, list]:
     """``name=v1,v2`` items -> {name: [values]}; values are YAML scalars (numbers, true, null)."""
+    require("yaml")
     import yaml
 
     grid = {}
@@ -118,6 +120,7 @@ def train_and_evaluate(algo: str, env_id: str, control_mode: str, seed: int, ove
 
 def _trial(config: dict) -> None:
     """The Ray Tune trainable: one (grid point, seed), its arrays saved beside its run."""
+    require("ray")
     from ray import tune
 
     config = config["trial"]
@@ -152,6 +155,7 @@ def run_sweep(algo: str, env_id: str, control_mode: str, seeds: list[int], grid:
     """Every (grid point, seed) as a Ray Tune trial; returns the comparison entries (and writes
     sweep.json and sweep.md under ``out``). Failed trials (after their retries) are listed in
     the entries' notes and in sweep.json's "failed"."""
+    require("ray")
     import ray
     from ray import tune
 

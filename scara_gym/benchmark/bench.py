@@ -23,6 +23,7 @@ import time
 
 from scara_gym.benchmark.reference import scipy_point_to_point
 from scara_gym.benchmark.tasks import point_to_point
+from scara_gym.extras import require
 
 
 def _best(run, repeats: int) -> tuple[float, float]:
@@ -380,6 +381,7 @@ def bench_gpu(sizes=GPU_SIZES, steps: int = 50, env_id: str = "Scara-C11-v1") ->
     (on the first 256 robots)."""
     import gymnasium as gym
     import numpy as np
+    require("torch")
     import torch
 
     rows = []

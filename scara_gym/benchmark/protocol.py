@@ -237,8 +237,9 @@ def draws_nothing(env) -> bool:
                 or task.sim_to_real.noisy)
 
 
-def evaluate(condition: Condition | str, policy_factory: Callable, control_mode: str = "pd",
-             episodes: int | None = None, env_id: str = ENV_ID, record: int = 1, env_kwargs=None) -> dict:
+def evaluate(condition: Condition | str, policy_factory: Callable | None = None, control_mode: str = "pd",
+             episodes: int | None = None, env_id: str = ENV_ID, record: int = 1, env_kwargs=None, *,
+             policy: Callable | None = None) -> dict:
     """A policy's episodes in a condition of the protocol, on the condition's evaluation seeds.
 
     A deterministic condition runs a deterministic policy's episode once per distinct outcome
@@ -246,7 +247,10 @@ def evaluate(condition: Condition | str, policy_factory: Callable, control_mode:
 
     Args:
         condition: a Condition or the name of one (``CONDITIONS``).
-        policy_factory: ``policy_factory(env)`` returns the policy, a callable obs -> action.
+        policy_factory: ``policy_factory(env)`` returns the policy, a callable obs -> action (for
+            a policy that needs the env, e.g. its task's parameters).
+        policy: or the policy itself, a plain callable obs -> action (e.g. a function); give one
+            of the two. A ``reset()`` it has is called before each episode.
         control_mode: "pd" or "voltage".
         episodes: how many of the condition's seeds (None: its own count).
         env_id: the registered id the episodes run on.
@@ -256,13 +260,16 @@ def evaluate(condition: Condition | str, policy_factory: Callable, control_mode:
     Returns:
         Per-episode arrays (success, collisions, reach_time, energy, ...; see
         scara_gym.benchmark.episodes) and "condition", the condition's name."""
+    if (policy_factory is None) == (policy is None):
+        raise TypeError("evaluate takes one of policy_factory (env -> policy) and policy (obs -> action), "
+                        f"got {'both' if policy is not None else 'neither'}")
     condition = get_condition(condition)
     checks.integer("record", record, 0)
     if env_kwargs is not None and not isinstance(env_kwargs, Mapping):
         raise TypeError(f"env_kwargs must be a mapping of environment arguments or None, got {env_kwargs!r}")
     env = condition.make_env(control_mode, env_id, **(env_kwargs or {}))
     seeds = condition.seeds(episodes)
-    result = run_episodes(env, policy_factory(env), seeds, [condition.options(s) for s in seeds],
+    result = run_episodes(env, policy if policy is not None else policy_factory(env), seeds, [condition.options(s) for s in seeds],
                           identical=condition.deterministic and draws_nothing(env), record=record)
     result["condition"] = condition.name
     return result

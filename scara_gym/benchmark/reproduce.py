@@ -93,6 +93,9 @@ def runtime_table(params: ScaraParams, repeats: int, progress: Progress | None) 
                 f"{tight.runtime_implicit / tight.runtime_explicit:.2f} |")
     rows.append(f"| max relative difference of the trajectories | | "
                 f"{loose.max_relative_difference:.1e} | {tight.max_relative_difference:.1e} |")
+    rows.append("")
+    rows.append("Runtimes are this machine's, best of the repeats: the ratios depend on the CPU, its load and "
+                "the compiler, so they differ from machine to machine and from the docs' figures.")
     return "\n".join(rows)
 
 
@@ -115,7 +118,7 @@ def reach_table(runs: dict[str, Trajectory], params: ScaraParams) -> str:
 
 
 NOTE = """\
-Not reproduced, as the spec predicts: the seed's continuous-variant time (1.7736 s, path
+Not reproduced, as expected from the model's physics (below): the seed's continuous-variant time (1.7736 s, path
 swinging round) and its collision of the restart variant at dec = 5e-3. Under the model
 as the seed describes it, the back-EMF damps the rate states during the freeze (they stay
 near 3.9 and 5.3 rad/s and point towards the target), so the arm does not swing round and

@@ -14,6 +14,10 @@ import time
 from typing import Any
 
 import numpy as np
+
+from scara_gym.extras import require
+
+require("stable_baselines3")
 from stable_baselines3.common.vec_env.base_vec_env import VecEnv
 
 from scara_gym.envs.vector import ScaraVectorEnv

@@ -9,7 +9,7 @@ that may depend on it. They take precedence over numba's own locators for these 
 only; numba's choice of directory (``NUMBA_CACHE_DIR``, the package's ``__pycache__``,
 or the user-wide cache for read-only installs) is kept.
 
-The first compilation takes about 40 s on a 2-core machine; a one-line message on
+The first compilation takes about 25 s on a 2-core machine (measured 2026-12-05); a one-line message on
 stderr says so when it starts (``COMPILE_MESSAGE``).
 """
 
@@ -43,7 +43,7 @@ JIT_INLINE = dict(JIT, inline="always")
 JIT_BORROW = dict(JIT, _nrt=False)
 
 COMPILE_MESSAGE = ("scara_gym: compiling the model with numba (first use after an install or "
-                   "an edit: about 40 s on 2 cores; the machine code is cached on disk)")
+                   "an edit: about 25 s on 2 cores; the machine code is cached on disk)")
 
 
 @functools.cache

@@ -43,6 +43,7 @@ from typing import Any
 
 import numpy as np
 
+from scara_gym.extras import require
 from scara_gym.model import checks
 from scara_gym.model.params import DEFAULT_PARAMS, ScaraParams
 from scara_gym.model.records import CURRENT, ENERGY, N_EVENTS, N_STATE, RATE, Q
@@ -102,6 +103,7 @@ def symbolic_model(params: ScaraParams = DEFAULT_PARAMS, *, control: str = "volt
     Returns:
         The SymbolicModel: CasADi functions ``rhs``, ``voltages``, ``events``, ``tip`` and
         ``free`` (voltages in, currents free), and the ``params`` they were built from."""
+    require("casadi")
     import casadi as ca
 
     if not isinstance(params, ScaraParams):

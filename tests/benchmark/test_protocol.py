@@ -153,3 +153,19 @@ def test_the_corners_condition_puts_every_parameter_at_an_end_of_its_range():
     assert protocol.protocol_record(["corners"])["corners"]["corners"] == "all"
     result = protocol.evaluate("corners", lambda env: Hold(env), episodes=2)
     assert result["condition"] == "corners" and len(result["success"]) == 2
+
+
+def test_evaluate_scores_a_plain_function_given_as_policy_as_its_factory_would():
+    """policy=: a function obs -> action, no factory needed; the same episodes as the factory's."""
+    def hold(obs):
+        return np.zeros(3)
+
+    given = protocol.evaluate("c11-starts", policy=hold, episodes=2)
+    made = protocol.evaluate("c11-starts", lambda env: hold, episodes=2)
+    assert given["condition"] == "c11-starts"
+    for key in ("success", "collisions", "energy", "return"):
+        np.testing.assert_array_equal(given[key], made[key])
+    with pytest.raises(TypeError, match="one of policy_factory .* and policy .*, got both"):
+        protocol.evaluate("c11", lambda env: hold, policy=hold, episodes=1)
+    with pytest.raises(TypeError, match="got neither"):
+        protocol.evaluate("c11", episodes=1)

@@ -16,6 +16,9 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 
+from scara_gym.extras import require
+
+require("stable_baselines3")
 from stable_baselines3 import HerReplayBuffer
 
 

@@ -11,6 +11,7 @@ from pathlib import Path
 
 from scara_gym.benchmark.protocol import ENV_ID
 from scara_gym.envs.task import MAX_ROBOTS
+from scara_gym.extras import require
 from scara_gym.model import checks
 
 INTEGERS = {"n_timesteps": 1, "n_envs": 1, "env_threads": 1, "torch_threads": 0, "n_steps": 1, "batch_size": 1,
@@ -45,6 +46,7 @@ def load_hyperparams(recipe: str, env_id: str = ENV_ID, control_mode: str = "pd"
                      variant: str | None = None, randomize_target: bool = False, path: Path | None = None) -> dict:
     """The block env_id -> control_mode (or "MODE-VARIANT"; "...-random" with randomize_target
     where present) of the recipe's YAML file (or of ``path``)."""
+    require("yaml")
     import yaml
 
     if recipe not in FILES:

@@ -14,6 +14,7 @@ from pathlib import Path
 import numpy as np
 
 from agents.files import require_trusted
+from scara_gym.extras import require
 from scara_gym.wrappers import ResidualSetpoint
 
 SHIPPED_MODELS = Path(__file__).resolve().parents[2] / "models"
@@ -22,6 +23,7 @@ MODEL_FILES = ("config.json", "model.zip", "vecnormalize.pkl")
 
 
 def algorithm_class(algo: str):
+    require("stable_baselines3")
     from stable_baselines3 import PPO, SAC, TD3
 
     return {"ppo": PPO, "sac": SAC, "td3": TD3}[algo]

@@ -39,6 +39,7 @@ from pathlib import Path
 
 import numpy as np
 
+from agents.algorithms.progress import Progress
 from agents.algorithms.sb3.hyperparams import check_hyperparams, load_hyperparams
 from agents.algorithms.sb3.policy import SHIPPED_MODELS, algorithm_class, residual_mapping
 from agents.files import (
@@ -52,6 +53,7 @@ from agents.files import (
     write_json,
 )
 from scara_gym.benchmark.protocol import ENV_ID
+from scara_gym.extras import require
 from scara_gym.model import checks
 from scara_gym.registration import ENV_KWARGS, GOAL_ENV_IDS
 
@@ -60,6 +62,9 @@ ALGORITHMS = ("ppo", "sac", "td3")
 RUN_KEYS = {"n_timesteps", "n_envs", "env_threads", "env_kwargs", "normalize", "residual_scale",
             "residual_deadzone", "net_arch", "log_std_init", "noise_std", "snapshot_freq",
             "eval_freq", "eval_episodes", "torch_threads", "checkpoint_freq"}
+DEFAULT_TORCH_THREADS = 1
+"""torch's threads of a run whose block names none: one per run (agents.algorithms.torch_ppo_config's
+reason: more cost most of the speed once another process wants a core)"""
 RESUMABLE = ("n_timesteps", "snapshot_freq", "eval_freq", "eval_episodes", "torch_threads", "env_threads",
              "checkpoint_freq")
 """hyperparameters a resumed run may change (its budget, its bookkeeping and how fast it runs); the
@@ -79,6 +84,7 @@ def make_envs(env_id: str, env_kwargs: dict, hyper: dict, seed: int, normalizer:
     has them), then VecNormalize (if it asks for it; on resume unpickled from `normalizer`, the
     checked bytes of a trusted snapshot's vecnormalize.pkl)."""
     import gymnasium as gym
+    require("stable_baselines3")
     from stable_baselines3.common.monitor import Monitor
     from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
 
@@ -117,6 +123,7 @@ def algorithm_kwargs(algo: str, hyper: dict, n_actions: int) -> dict:
     if algo == "ppo" and "log_std_init" in hyper:
         policy_kwargs["log_std_init"] = hyper["log_std_init"]
     if algo == "td3" and hyper.get("noise_std"):
+        require("stable_baselines3")
         from stable_baselines3.common.noise import NormalActionNoise
 
         kwargs["action_noise"] = NormalActionNoise(np.zeros(n_actions), hyper["noise_std"] * np.ones(n_actions))
@@ -128,6 +135,7 @@ def algorithm_kwargs(algo: str, hyper: dict, n_actions: int) -> dict:
 
 
 def _snapshot_callback(out: Path, every: int, eval_callback, clock: dict):
+    require("stable_baselines3")
     from stable_baselines3.common.callbacks import BaseCallback
 
     class Snapshot(BaseCallback):
@@ -167,6 +175,31 @@ def _snapshot_callback(out: Path, every: int, eval_callback, clock: dict):
             shutil.rmtree(old, ignore_errors=True)
 
     return Snapshot()
+
+
+def _progress_callback(total: int):
+    require("stable_baselines3")
+    from stable_baselines3.common.callbacks import BaseCallback
+
+    class ShowProgress(BaseCallback):
+        """The progress line (agents.algorithms.progress): the last 100 episodes' return and success (SB3's
+        buffers, filled from the env's Monitor-style infos)."""
+
+        def _on_training_start(self) -> None:
+            self.progress = Progress(total, start_step=self.num_timesteps)
+
+        def _report(self, final: bool) -> None:
+            self.progress.report(self.num_timesteps, [e["r"] for e in self.model.ep_info_buffer],
+                                 self.model.ep_success_buffer, final=final)
+
+        def _on_step(self) -> bool:
+            self._report(final=False)
+            return True
+
+        def _on_training_end(self) -> None:
+            self._report(final=True)
+
+    return ShowProgress()
 
 
 def _save_history(path: Path, eval_callback) -> None:
@@ -212,7 +245,9 @@ def run_record(algo: str, env_id: str, control_mode: str, seed: int, hyper: dict
 def _train(algo: str, out: str | Path, env_id: str, control_mode: str, seed: int, hyper: dict,
            total_timesteps: int | None, progress_bar: bool, command: str | None, resume: bool,
            overwrite: bool) -> Path:
+    require("torch")
     import torch
+    require("stable_baselines3")
     from stable_baselines3.common.callbacks import CheckpointCallback, EvalCallback
 
     total_timesteps = int(total_timesteps or hyper["n_timesteps"])
@@ -222,8 +257,9 @@ def _train(algo: str, out: str | Path, env_id: str, control_mode: str, seed: int
     continuing = claim_run_folder(out, run_record(algo, env_id, control_mode, seed, hyper), resume, overwrite)
     if continuing and (out / "config.json").exists() and (out / "model.zip").exists():
         return out  # finished before: nothing more to do
-    if hyper.get("torch_threads"):
-        torch.set_num_threads(int(hyper["torch_threads"]))
+    threads = int(hyper.get("torch_threads", DEFAULT_TORCH_THREADS))
+    if threads:  # 0: torch's default (a thread per core)
+        torch.set_num_threads(threads)
     env_kwargs = {"control_mode": control_mode, **hyper.get("env_kwargs", {})}
 
     snapshot = out / "snapshot"
@@ -259,7 +295,7 @@ def _train(algo: str, out: str | Path, env_id: str, control_mode: str, seed: int
     clock = {"before": progress["train_seconds"], "started": time.perf_counter()}
     snapshots = _snapshot_callback(out, int(hyper.get("snapshot_freq", 50_000)), eval_callback, clock)
 
-    callbacks = [eval_callback, snapshots]
+    callbacks = [eval_callback, snapshots, _progress_callback(total_timesteps)]
     if hyper.get("checkpoint_freq"):  # kept models for scara-agents select, with their normalizers
         callbacks.append(CheckpointCallback(per_env(hyper["checkpoint_freq"]), str(out / "checkpoints"),
                                             name_prefix=algo, save_vecnormalize=True))

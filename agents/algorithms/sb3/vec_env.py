@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+from scara_gym.extras import require
+
+require("stable_baselines3")
 from stable_baselines3.common.vec_env import VecEnvWrapper
 
 from scara_gym.wrappers import ResidualSetpoint
