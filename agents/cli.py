@@ -519,13 +519,20 @@ def _add_bench(sub) -> None:
     p.add_argument("--gpu", action="store_true", help="also the GPU PPO (a CUDA device and the cuda extra)")
     p.add_argument("--env-ids", nargs="+", choices=ENV_IDS, default=[ENV_ID],
                    help=f"the ids the CPU PPO trains on, in turn in one sitting (default: {ENV_ID})")
+    p.add_argument("--offpolicy", action="store_true",
+                   help="also off-policy steps/s of SB3 SAC/TD3, sb3-contrib TQC and sbx-rl SAC/TD3/TQC/CrossQ, "
+                        "interleaved, on the first --env-ids, every trainer on one thread (pip install sb3-contrib "
+                        "sbx-rl)")
     p.set_defaults(handler=_bench)
 
 
 def _bench(args, argv) -> str:
     from agents.experiments import bench as agents_bench
 
-    return agents_bench.main(args.quick, args.her, args.gpu, tuple(args.env_ids))
+    missing = agents_bench.offpolicy_missing() if args.offpolicy else []
+    if missing:
+        raise UserError(f"--offpolicy needs {' and '.join(missing)}: pip install {' '.join(missing)}")
+    return agents_bench.main(args.quick, args.her, args.gpu, tuple(args.env_ids), args.offpolicy)
 
 
 def _add_datasets(sub) -> None:

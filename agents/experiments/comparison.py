@@ -19,8 +19,14 @@ the protocol's one id (``protocol.ENV_ID``, the latest), each condition on its o
   behind the shield (tag "shielded") always act behind it.
 
 Learned runs are aggregated with rliable over their training seeds (agents.experiments.statistics);
-every seed's own figures are in ``per_seed``. The report (tables, figures) is
-agents.experiments.report's; the acceptance targets are agents.experiments.targets'.
+every seed's own figures are in ``per_seed``. Every entry is scored at the C11 band and at the looser
+bands of scara_gym.benchmark.episodes (``success_rate_1e-2``, ``time_iqm_1e-2``, ...; statistics'
+docstring) and, per episode, by a normalized time score (:func:`time_score_reference`): 0 = "pd +
+shield"'s time in the same episode, 1 = the time of the optimal replay where the condition has it,
+else of the MPC ("mpc", voltage mode), each entry naming which ("time_score_reference"); a
+condition with neither (``include_mpc=False`` outside the optimal's conditions) leaves the score
+out. The report (tables, figures) is agents.experiments.report's; the acceptance targets are
+agents.experiments.targets'.
 """
 
 from __future__ import annotations
@@ -37,7 +43,14 @@ from agents.experiments.evaluation import (
     mpc_episodes,
 )
 from agents.experiments.registry import RUNS, tagged
-from agents.experiments.statistics import entry, probability_faster, rate_text, time_scores, training_seconds
+from agents.experiments.statistics import (
+    entry,
+    probability_faster,
+    rate_text,
+    time_score_fields,
+    time_scores,
+    training_seconds,
+)
 from agents.experiments.tuning import tune_heuristic
 from agents.files import json_record
 from agents.policies import (
@@ -115,6 +128,7 @@ def compare(runs_root: Path | None = Path("runs/baselines"), conditions: list[st
         if include_mpc:
             table.mpc()
         table.learned(groups, cache, shielded)
+        table.time_scores()
         entries += table.entries
         traces[name] = table.traces
         if verbose:
@@ -137,6 +151,7 @@ class _ConditionTable:
         self.condition, self.verbose, self.cache = condition, verbose, cache
         self.episodes = 1 if condition.episodes == 1 else episodes  # the C11 episode is one episode
         self.entries: list[dict] = []
+        self.runs: list[list[dict]] = []  # each entry's per-episode arrays, for the normalized time score
         self.traces: dict = {}
         self.reference = None  # the heuristic learned agents are compared with: dec-continue at its tuned distance
 
@@ -146,6 +161,7 @@ class _ConditionTable:
              "shielded": shielded, "shield_range": shield_range or ("nominal" if shielded else None), "run": run,
              "tags": sorted(tags)}
         self.entries.append(e)
+        self.runs.append(runs)
         self.traces[label] = runs[0]["trace"]
         if self.verbose:
             print(f"[{self.condition.name}] {label}: success {rate_text(e['success_rate'])}, collisions "
@@ -208,6 +224,19 @@ class _ConditionTable:
             e = self.add(label, "mpc", None, mode, [result], None, note=note)
             e["solve_time"] = result["solve_time"]
 
+    def time_scores(self) -> None:
+        """Every entry's normalized time score (statistics.time_score_fields) against this
+        condition's "pd + shield" (0) and time_score_reference's entry (1); none without both."""
+        found = time_score_reference([e["name"] for e in self.entries])
+        if found is None:
+            return
+        zero, one = (self.runs[[e["name"] for e in self.entries].index(label)] for label in found)
+        for e, runs in zip(self.entries, self.runs):
+            fields = time_score_fields(runs, zero, one, found[1], e["seeds"])
+            for item, score in zip(e.get("per_seed", []), fields.pop("per_seed_scores", [])):
+                item["time_score_mean"] = score
+            e.update(fields)
+
     def learned(self, groups: dict, cache, shielded, shields=(False, True)) -> None:
         """Every learned run's seeds (and behind the shield where ``shielded`` names it); shields:
         which of the two evaluations (without, behind the shield) to make."""
@@ -225,6 +254,20 @@ class _ConditionTable:
                     p, ci = probability_faster(time_scores(runs), time_scores(self.reference))
                     e["probability_faster_than_heuristic"] = p
                     e["probability_faster_ci"] = ci
+
+
+TIME_SCORE_REFERENCES = ("optimal", "mpc")
+"""the entries that score 1 in the normalized time score, the first present (the optimal replay, else the MPC
+in "voltage" mode)"""
+
+
+def time_score_reference(labels) -> tuple[str, str] | None:
+    """(the entry scoring 0, the entry scoring 1) of the normalized time score among a condition's
+    entry ``labels``: "pd + shield" and the first of TIME_SCORE_REFERENCES present; None where
+    either is missing."""
+    zero = "pd" + SHIELD_SUFFIX
+    one = next((label for label in TIME_SCORE_REFERENCES if label in labels), None)
+    return None if zero not in labels or one is None else (zero, one)
 
 
 def _compare_condition(arguments: tuple) -> tuple[list[dict], dict]:

@@ -27,6 +27,7 @@ from agents.policies import DecHeuristic, PDPolicy, mpc as mpc_module
 from agents.policies.mpc import MPCConfig, MPCPolicy, solve_time_summary
 from agents.policies.optimal import OptimalPolicy
 from scara_gym import __version__
+from scara_gym.benchmark.episodes import BAND_NAMES, band_keys
 from scara_gym.benchmark.protocol import ENV_ID, Condition, evaluate as evaluate_condition, get_condition
 from scara_gym.model import symbolic as symbolic_module
 from scara_gym.wrappers import Shield
@@ -114,15 +115,19 @@ def learned_episodes(run_dir: Path, condition: Condition, mode: str, episodes: i
     return _kept(Path(cache) / f"{evaluation_key(run_dir, condition, mode, episodes, shield)}.npz", run)
 
 
+BAND_KEYS = [band_keys(name) for name in BAND_NAMES]
+"""(success, time to the band) per band scored (scara_gym.benchmark.episodes.BANDS), the C11 band's first"""
 ENTRY_KINDS = {"success": "b", "collisions": "b", "collision_counts": "iu", "reach_time": "f", "energy": "f",
-               "peak_current_fraction": "f", "return": "f", "seeds": "iu"}
-"""the per-episode arrays every kept evaluation holds, with the numpy kinds they may have"""
+               "peak_current_fraction": "f", "return": "f", "seeds": "iu",
+               **{key: kind for success, reach in BAND_KEYS[1:] for key, kind in ((success, "b"), (reach, "f"))}}
+"""the per-episode arrays every kept evaluation holds, with the numpy kinds they may have (an evaluation
+kept before the looser bands were scored lacks theirs: it is evaluated again)"""
 
 
 def entry_problem(arrays: dict[str, np.ndarray]) -> str | None:
     """What makes ``arrays`` no evaluation this package kept (None: nothing): a per-episode array
-    missing, of another kind or length, a value that is not finite (reach_time: NaN exactly where
-    the episode did not succeed), no trace, or any array that is not numbers."""
+    missing, of another kind or length, a value that is not finite (a time to a band: NaN exactly
+    where the episode did not reach it), no trace, or any array that is not numbers."""
     missing = sorted(set(ENTRY_KINDS) - set(arrays))
     if missing:
         return f"no {missing}"
@@ -132,11 +137,14 @@ def entry_problem(arrays: dict[str, np.ndarray]) -> str | None:
             return f"{key} is not {episodes} values of kind {kinds!r}"
     if any(a.dtype.kind not in "biuf" for a in arrays.values()):
         return "an array that is not numbers"
-    finite = {k: np.isfinite(a).all() for k, a in arrays.items() if a.dtype.kind == "f" and k != "reach_time"}
+    times = {reach for _, reach in BAND_KEYS}
+    finite = {k: np.isfinite(a).all() for k, a in arrays.items() if a.dtype.kind == "f" and k not in times}
     if not all(finite.values()):
         return f"{sorted(k for k, ok in finite.items() if not ok)} hold values that are not finite"
-    if not np.array_equal(np.isfinite(arrays["reach_time"]), arrays["success"]):
-        return "reach_time is not finite exactly where the episode succeeded"
+    for success, reach in BAND_KEYS:
+        if not np.array_equal(np.isfinite(arrays[reach]), arrays[success]):
+            return f"{reach} is not finite exactly where the episode " + (
+                "succeeded" if success == "success" else "reached the band")
     if "traces_0" not in arrays:
         return "no trace"
     return None

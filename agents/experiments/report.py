@@ -11,6 +11,7 @@ from agents.experiments.evaluation import COLUMNS
 from agents.experiments.statistics import interval_estimates, rate_text
 from agents.experiments.targets import target_checks
 from scara_gym import DEFAULT_PARAMS
+from scara_gym.benchmark.episodes import BAND_NAMES
 from scara_gym.benchmark.protocol import CONDITIONS
 from scara_gym.extras import require
 
@@ -226,6 +227,7 @@ def condition_tables(entries: list[dict]) -> str:
             lines += ["", f"{e['name']}: solve time per control step median {1e3 * t['median']:.1f} ms, 95th percentile "
                           f"{1e3 * t['p95']:.1f} ms, worst {1e3 * t['worst']:.1f} ms ({t['solves']} solves, "
                           f"{t['failures']} not converged)"]
+        lines += precision_table([e for e in entries if e["condition"] == name])
         per_seed = [e for e in entries if e["condition"] == name and e.get("per_seed")]
         if per_seed:
             lines += ["", "Every seed (success, collisions, mean time of the successful episodes, energy):", ""]
@@ -236,6 +238,41 @@ def condition_tables(entries: list[dict]) -> str:
                 lines.append(f"- {e['name']}: " + "; ".join(cells))
         lines.append("")
     return "\n".join(lines)
+
+
+def _interval_cell(point: float, interval, digits: int = 3) -> str:
+    return f"{point:.{digits}f} [{interval[0]:.{digits}f}, {interval[1]:.{digits}f}]"
+
+
+def precision_table(entries: list[dict]) -> list[str]:
+    """The lines of one condition's table at every band (scara_gym.benchmark.episodes.BAND_NAMES):
+    success rates, times to each band (IQM, 95 % CI; the time limit where not reached) and the
+    normalized time score (IQM, 95 % CI) with the reference that scores 1; none for entries kept
+    before the looser bands were scored."""
+    entries = [e for e in entries if f"success_rate_{BAND_NAMES[-1]}" in e]
+    if not entries:
+        return []
+    references = sorted({e["time_score_reference"] for e in entries if "time_score_reference" in e})
+    if references:
+        scored = max(e.get("time_score_episodes", 0) for e in entries)
+        reference = (f"normalized time score per episode: 0 = pd + shield's time, 1 = {', '.join(references)}'s "
+                     f"time in the same episode (the optimal replay where the condition has it, else the MPC); "
+                     f"{scored} of {entries[0]['episodes']} episodes scored (those where the reference reaches the "
+                     "target sooner than pd + shield)")
+    else:
+        reference = ("no normalized time score: neither the optimal replay nor the MPC was evaluated in this "
+                     "condition")
+    header = ([f"success {band}" for band in BAND_NAMES] + [f"time to {band}, IQM [95 % CI] (s)" for band in BAND_NAMES]
+              + ["normalized time score, IQM [95 % CI]"])
+    lines = ["", f"At each precision (bands in rad and m; {reference}):", "",
+             "| policy | " + " | ".join(header) + " |", "|---|" + "---|" * len(header)]
+    for e in entries:
+        cells = [rate_text(e["success_rate"])] + [rate_text(e[f"success_rate_{band}"]) for band in BAND_NAMES[1:]]
+        cells.append(_interval_cell(e["time_iqm"], e["time_ci"]))
+        cells += [_interval_cell(e[f"time_iqm_{band}"], e[f"time_ci_{band}"]) for band in BAND_NAMES[1:]]
+        cells.append(_interval_cell(e["time_score_iqm"], e["time_score_ci"], 2) if "time_score_iqm" in e else "-")
+        lines.append(f"| {e['name']} | " + " | ".join(cells) + " |")
+    return lines
 
 
 def comparison_figures(entries: list[dict], traces: dict, groups: dict, out: Path) -> list[Path]:

@@ -1,5 +1,13 @@
 """The comparison's statistics: rliable's interquartile mean with stratified-bootstrap intervals,
-the probability of improvement, and the entry every policy gets per condition."""
+the probability of improvement, and the entry every policy gets per condition.
+
+An entry scores every band of scara_gym.benchmark.episodes (``BAND_NAMES``): the C11 band 1e-3 as
+``success_rate`` and ``time_iqm`` / ``time_ci``; each looser band NAME (1e-2, 5e-2) as
+``success_rate_NAME`` and ``time_iqm_NAME`` / ``time_ci_NAME`` (the time to the band, the time
+limit where not reached, as for the C11 band); per seed ``success_rate_NAME`` and ``time_mean_NAME``.
+The normalized time score (:func:`time_score_fields`) is added by the comparison, which has the
+references' episodes.
+"""
 
 from __future__ import annotations
 
@@ -7,14 +15,50 @@ import warnings
 
 import numpy as np
 
+from scara_gym.benchmark.episodes import BANDS, band_keys
 from scara_gym.extras import require
 
 TIME_LIMIT = 3.0  # s, the registered episode limit: the time of an episode that never arrives
 
 
-def time_scores(runs: list[dict]) -> np.ndarray:
-    """(runs, episodes) times to target, the time limit where not reached (lower is better)."""
-    return np.array([np.where(np.isnan(r["reach_time"]), TIME_LIMIT, r["reach_time"]) for r in runs])
+def time_scores(runs: list[dict], key: str = "reach_time") -> np.ndarray:
+    """(runs, episodes) times to target (``key``: the per-episode times, e.g. a looser band's
+    ``reach_time_1e-2``), the time limit where not reached (lower is better)."""
+    return np.array([np.where(np.isnan(r[key]), TIME_LIMIT, r[key]) for r in runs])
+
+
+def normalized_time_scores(times: np.ndarray, zero: np.ndarray, one: np.ndarray) -> np.ndarray:
+    """(runs, episodes) normalized time scores (zero_j - t_j) / (zero_j - one_j) of the times
+    ``times`` (time_scores: the time limit where not reached) against two references' times per
+    episode j: ``zero`` scores 0 (the time limit where it did not reach the target), ``one`` scores 1
+    (NaN where it did not). An episode whose ``one`` did not reach the target, or was not sooner
+    than ``zero``, has no score (NaN): no scale to measure on. Not clipped: above 1 is faster
+    than the reference, below 0 slower than the zero policy (a miss is scored at the time limit)."""
+    times, zero, one = np.atleast_2d(times), np.asarray(zero, dtype=float), np.asarray(one, dtype=float)
+    scored = np.isfinite(one) & (one < zero)
+    span = np.where(scored, zero - np.where(scored, one, 0.0), 1.0)
+    return np.where(scored, (zero - times) / span, np.nan)
+
+
+def time_score_fields(runs: list[dict], zero_runs: list[dict], one_runs: list[dict], reference: str,
+                      seeds: list[int] | None = None) -> dict:
+    """An entry's normalized time score (normalized_time_scores: 0 = the first run of ``zero_runs``,
+    1 = the first of ``one_runs``, per episode at the C11 band) over ``runs``: "time_score_iqm" and
+    its 95 % interval "time_score_ci" (rliable, as time_iqm) over the episodes that have a score
+    ("time_score_episodes" of them), "time_score_reference" (what scores 1) and, with ``seeds``,
+    each seed's mean as ``time_score_mean`` of its per_seed item (returned as "per_seed_scores").
+    No episode scored: {"time_score_reference": reference, "time_score_episodes": 0}."""
+    zero, one = time_scores(zero_runs[:1])[0], one_runs[0]["reach_time"]
+    scores = normalized_time_scores(time_scores(runs), zero, one)
+    kept = np.isfinite(scores[0])
+    out = {"time_score_reference": reference, "time_score_episodes": int(kept.sum())}
+    if not kept.any():
+        return out
+    scores = scores[:, kept]
+    out["time_score_iqm"], out["time_score_ci"] = iqm_with_ci(scores)
+    if seeds is not None:
+        out["per_seed_scores"] = [float(s.mean()) for s in scores]
+    return out
 
 
 def interval_estimates(scores: dict, function, reps: int, seed: int):
@@ -76,15 +120,30 @@ def entry(name: str, kind: str, algorithm: str | None, mode: str, condition: str
            "time_iqm": time_iqm, "time_ci": time_ci,
            "energy_mean": float(np.mean([r["energy"].mean() for r in runs])),
            "return_mean": float(np.mean([r["return"].mean() for r in runs])), "note": note}
+    for band in BANDS:  # the looser bands (module docstring)
+        reached, times = band_keys(band)
+        row[f"success_rate_{band}"] = float(np.concatenate([r[reached] for r in runs]).mean())
+        row[f"time_iqm_{band}"], row[f"time_ci_{band}"] = iqm_with_ci(time_scores(runs, times))
     if seeds is not None:
         row["per_seed"] = [{"seed": s, "success_rate": float(r["success"].mean()),
                             "collision_rate": float(r["collisions"].mean()),
                             "time_mean": float(np.nanmean(r["reach_time"])) if r["success"].any() else None,
                             "energy_mean": float(r["energy"].mean()),
-                            "return_mean": float(r["return"].mean())} for s, r in zip(seeds, runs)]
+                            "return_mean": float(r["return"].mean()),
+                            **_band_figures(r)} for s, r in zip(seeds, runs)]
         for item, seconds in zip(row["per_seed"], train_seconds or []):
             item["train_seconds"] = seconds
     return row
+
+
+def _band_figures(run: dict) -> dict:
+    """One seed's success rate and mean time (over the episodes that reach it) at each looser band."""
+    out = {}
+    for band in BANDS:
+        reached, times = band_keys(band)
+        out[f"success_rate_{band}"] = float(run[reached].mean())
+        out[f"time_mean_{band}"] = float(np.nanmean(run[times])) if run[reached].any() else None
+    return out
 
 
 def rate_text(rate: float) -> str:

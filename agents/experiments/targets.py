@@ -15,6 +15,9 @@ MPC_SOLVE_BUDGET = 0.010
 """[s] the median solve time per control step the MPC aims at (real time at 100 Hz)"""
 TRAINING_BUDGET = 1800.0
 """[s] per training run on 2 CPU cores"""
+TIME_SCORE_TARGET = 0.8
+"""the normalized time score (IQM) the best learned policy reaches in each of TIME_SCORE_CONDITIONS"""
+TIME_SCORE_CONDITIONS = ("c11-starts", "random-targets", "random-shifts")
 
 
 def _find(entries, condition, kind=None, algorithm=None):
@@ -74,6 +77,26 @@ def _mpc_checks(entries, check, summary) -> None:
         check(text, None, "not evaluated")
 
 
+def _time_score_check(entries, check) -> None:
+    """The best learned policy's normalized time score (IQM; 0 = pd + shield, 1 = the optimal replay or
+    the MPC) in each of TIME_SCORE_CONDITIONS; a condition without a scored learned entry is not evaluated."""
+    text = (f"best learned policy's normalized time score >= {TIME_SCORE_TARGET} in "
+            f"{', '.join(TIME_SCORE_CONDITIONS)} (IQM; 0 = pd + shield, 1 = the optimal replay or the MPC)")
+    best = {}
+    for name in TIME_SCORE_CONDITIONS:
+        scored = [e for e in _find(entries, name, "learned") if "time_score_iqm" in e]
+        if scored:
+            best[name] = max(scored, key=lambda e: e["time_score_iqm"])
+    if not best:
+        check(text, None, "not evaluated")
+        return
+    reached = "; ".join(f"{name}: {e['name']} {e['time_score_iqm']:.2f} (against {e['time_score_reference']})"
+                        for name, e in best.items())
+    missing = [name for name in TIME_SCORE_CONDITIONS if name not in best]
+    check(text, not missing and all(e["time_score_iqm"] >= TIME_SCORE_TARGET for e in best.values()),
+          reached + (f"; not evaluated in {', '.join(missing)}" if missing else ""))
+
+
 def target_checks(entries: list[dict]) -> list[dict]:
     """The acceptance targets: {"target", "met" (True/False/None: not evaluated), "reached"}."""
     checks = []
@@ -127,6 +150,7 @@ def target_checks(entries: list[dict]) -> list[dict]:
         check(text, best["success_rate"] >= 0.95 and best["collision_rate"] == 0.0, summary(best))
     else:
         check(text, None, "not evaluated")
+    _time_score_check(entries, check)
     learned = _find(entries, "c11", "learned")
     # keyed by the runs' folder: a run also evaluated behind the shield is listed once
     seconds = {e["run"]: [s.get("train_seconds") for s in e["per_seed"]] for e in learned}

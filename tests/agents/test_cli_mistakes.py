@@ -247,3 +247,17 @@ def test_a_set_value_written_as_1e_minus_4_is_a_number_not_text():
 
     assert _yaml_value("1e-4") == 1e-4 and _yaml_value("1.0e-4") == 1e-4  # YAML 1.1 reads the first as text
     assert _yaml_value("[64, 64]") == [64, 64] and _yaml_value("true") is True and _yaml_value("fast") == "fast"
+
+
+def test_bench_offpolicy_without_its_packages_names_what_to_install(monkeypatch, capsys):
+    """--offpolicy needs sb3-contrib and sbx-rl, optional packages: one line naming the missing ones
+    (whether or not they are installed here), before anything is trained."""
+    import importlib.util
+
+    found = importlib.util.find_spec
+    monkeypatch.setattr(importlib.util, "find_spec", lambda name, *a: None if name == "sbx" else found(name, *a))
+    if found("sb3_contrib") is None:
+        _refused_in_one_line(["bench", "--offpolicy"], r"--offpolicy needs sb3-contrib and sbx-rl: pip install "
+                                                       r"sb3-contrib sbx-rl$", capsys)
+    else:
+        _refused_in_one_line(["bench", "--offpolicy"], r"--offpolicy needs sbx-rl: pip install sbx-rl$", capsys)

@@ -365,7 +365,8 @@ def test_the_classical_rows_come_back_from_the_cache(tmp_path, monkeypatch):
 
 
 @pytest.mark.parametrize("damage", ["truncated", "a key missing", "no trace", "NaN energy", "text success",
-                                    "a reach time without success"])
+                                    "a reach time without success", "kept before the looser bands",
+                                    "a band time without reaching it"])
 def test_a_bad_cache_entry_is_evaluated_again(tmp_path, damage):
     from agents.experiments import evaluation
     from agents.files import load_arrays, save_arrays
@@ -374,7 +375,9 @@ def test_a_bad_cache_entry_is_evaluated_again(tmp_path, damage):
         return {"success": np.array([True, False]), "collisions": np.array([False, True]),
                 "collision_counts": np.array([0, 2]), "reach_time": np.array([1.5, np.nan]),
                 "energy": np.array([3.0, 4.0]), "peak_current_fraction": np.array([0.5, 0.9]),
-                "return": np.array([-1.0, -2.0]), "seeds": np.array([7, 8]), "traces": [np.ones((4, 3))]}
+                "return": np.array([-1.0, -2.0]), "seeds": np.array([7, 8]), "traces": [np.ones((4, 3))],
+                "success_1e-2": np.array([True, True]), "reach_time_1e-2": np.array([1.4, 2.5]),
+                "success_5e-2": np.array([True, True]), "reach_time_5e-2": np.array([1.3, 2.0])}
 
     runs = []
 
@@ -396,6 +399,10 @@ def test_a_bad_cache_entry_is_evaluated_again(tmp_path, damage):
             arrays["energy"][0] = np.nan
         elif damage == "text success":
             arrays["success"] = np.array(["yes", "no"])
+        elif damage == "kept before the looser bands":
+            arrays = {k: v for k, v in arrays.items() if not k.endswith(("1e-2", "5e-2"))}
+        elif damage == "a band time without reaching it":
+            arrays["success_1e-2"][1] = False
         else:
             arrays["reach_time"][1] = 2.0
         save_arrays(entry, arrays)
