@@ -37,6 +37,7 @@ from agents.experiments.checkpoints import select_checkpoint
 from agents.experiments.comparison import SHIELDED, compare_in_parallel
 from agents.experiments.curves import robustness_curves, write_curves
 from agents.experiments.evaluation import COLUMNS, evaluate, learned_runs
+from agents.experiments.learning_curves import learning_curve, run_folders
 from agents.experiments.registry import RUNS, spec
 from agents.experiments.report import comparison_figures, comparison_markdown, evaluation_report, markdown_table
 from agents.experiments.runs import campaign, hyperparams_of, train_run
@@ -385,6 +386,35 @@ def _compare(args, argv) -> list[dict]:
     return entries
 
 
+def _add_learning_curve(sub) -> None:
+    p = sub.add_parser("learning-curve", help="a learning-curve run's checkpoints scored at doubling budgets",
+                       description="Every seed's checkpoints of a run tagged 'learning-curve' scored at 250k, 500k, "
+                                   "1M, ... steps and its last on the tuning episodes of the condition it trains on "
+                                   "(agents.experiments.learning_curves): NAME.json (summary, plateau, raw episodes) "
+                                   "and NAME.png under --out.")
+    p.add_argument("name", metavar="NAME", help="a registered run tagged 'learning-curve'")
+    p.add_argument("--runs", type=_folder, default=Path("runs/curves"),
+                   help="the folder of its runs (ENV_ID/MODE/NAME/seedN)")
+    p.add_argument("--env-id", choices=ENV_IDS, default=ENV_ID, help="the id its runs trained on")
+    p.add_argument("--episodes", type=int, default=50, help="tuning episodes per budget and seed")
+    p.add_argument("--out", type=_folder, default=Path("docs/results/learning_curves"))
+    p.set_defaults(handler=_learning_curve)
+
+
+def _learning_curve(args, argv) -> dict:
+    _positive("--episodes", args.episodes)
+    if "learning-curve" not in spec(args.name).tags:
+        raise UserError(f"{args.name} is not a learning-curve run; those are "
+                        + ", ".join(n for n, r in RUNS.items() if "learning-curve" in r.tags))
+    folders = run_folders(args.name, args.runs, args.env_id)
+    if not folders:
+        raise UserError(f"no finished run of {args.name} under {args.runs / args.env_id / 'pd' / args.name}; "
+                        f"train one with scara-agents train {args.name} --out .../seedN")
+    data = learning_curve(args.name, folders, args.episodes, args.out)
+    print(f"{args.name}: plateau {data['plateau']}; written to {args.out}")
+    return data
+
+
 def _add_curves(sub) -> None:
     p = sub.add_parser("curves", help="robustness curves: success and time against shift and noise magnitude",
                        description="PD behind the shield, the tuned heuristic and the learned baselines at growing "
@@ -578,7 +608,8 @@ def build_parser() -> argparse.ArgumentParser:
     parser = _Parser(prog="scara-agents", description="The agents of scara_gym: evaluate, train, compare, sweep.")
     parser.add_argument("--debug", action="store_true", help="show the traceback of an error")
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
-    for add in (_add_evaluate, _add_train, _add_torch_ppo, _add_campaign, _add_compare, _add_curves, _add_sweep,
+    for add in (_add_evaluate, _add_train, _add_torch_ppo, _add_campaign, _add_compare, _add_curves,
+                _add_learning_curve, _add_sweep,
                 _add_select, _add_optimal, _add_bench, _add_datasets):
         add(sub)
     return parser

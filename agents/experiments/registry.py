@@ -12,6 +12,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+from scara_gym.benchmark.protocol import CONDITIONS
+
 TAGS = {
     "standard": "a standard algorithm on the environment as users get it (its own reward and actions)",
     "engineered": "an engineered agent: a shaped training reward and/or a residual set-point",
@@ -26,6 +28,7 @@ TAGS = {
     "perturbed-starts": "trained from starts drawn in the protocol's start region (randomize_start)",
     "sensor-noise": "trained with noisy sensors (sensor_noise at the protocol's levels)",
     "offline": "learns from an offline dataset (agents.experiments.datasets) without acting in the env: its own kind",
+    "learning-curve": "trained to a large budget with checkpoints along the way: scara-agents learning-curve scores them",
     "pilot": "a pilot, not a baseline: trained and logged (docs/experiments.md), left out of the comparison's tables",
 }
 """every tag a run may carry, and what it says"""
@@ -51,6 +54,9 @@ class RunSpec:
     base: str | None = None
     """a fine-tune's base run: trained first where missing; both stages' time counts"""
     tags: frozenset[str] = frozenset()
+    trained_on: str | None = None
+    """the protocol condition whose draws it trains on (its learning curve is scored on that
+    condition's tuning episodes); None: the env's own episode"""
 
     def __post_init__(self) -> None:
         unknown = sorted(set(self.tags) - set(TAGS))
@@ -60,6 +66,11 @@ class RunSpec:
             raise ValueError(f"run {self.name!r}: trainer must be 'sb3', 'torch-ppo' or 'bc', got {self.trainer!r}")
         if (self.trainer == "bc") != ("offline" in self.tags):
             raise ValueError(f"run {self.name!r}: the 'bc' trainer and the 'offline' tag go together")
+        if self.trained_on is not None and self.trained_on not in CONDITIONS:
+            raise ValueError(f"run {self.name!r}: trained_on must be one of the protocol's conditions "
+                             f"{sorted(CONDITIONS)} or None, got {self.trained_on!r}")
+        if ("learning-curve" in self.tags) != (self.trained_on is not None):
+            raise ValueError(f"run {self.name!r}: the 'learning-curve' tag and a trained_on condition go together")
         if (self.base is not None) != ("fine-tune" in self.tags):
             raise ValueError(f"run {self.name!r}: a base run and the 'fine-tune' tag go together")
 
@@ -80,6 +91,18 @@ RUNS = _runs(
     RunSpec("ppo", "sb3", "SB3 PPO, ppo.yml", sb3_algorithm="ppo", recipe="ppo", tags=frozenset({"standard"})),
     RunSpec("sac", "sb3", "SB3 SAC, sac.yml", sb3_algorithm="sac", recipe="sac", tags=frozenset({"standard"})),
     RunSpec("td3", "sb3", "SB3 TD3, td3.yml", sb3_algorithm="td3", recipe="td3", tags=frozenset({"standard"})),
+    RunSpec("ppo-c11-starts", "sb3", "SB3 PPO, ppo.yml's recipe on c11-starts' draws (starts from the start region), "
+            "1e7 steps, a checkpoint every 250k: its learning curve", sb3_algorithm="ppo", recipe="ppo",
+            variant="c11-starts", tags=frozenset({"standard", "pilot", "perturbed-starts", "learning-curve"}),
+            trained_on="c11-starts"),
+    RunSpec("ppo-random-targets", "sb3", "SB3 PPO, ppo.yml's recipe on random-targets' draws, 1e7 steps, a "
+            "checkpoint every 250k: its learning curve", sb3_algorithm="ppo", recipe="ppo", variant="random-targets",
+            tags=frozenset({"standard", "pilot", "random-targets", "learning-curve"}),
+            trained_on="random-targets"),
+    RunSpec("ppo-random-shifts", "sb3", "SB3 PPO, ppo.yml's recipe on random-shifts' draws (physics and wall drawn "
+            "per episode), 1e7 steps, a checkpoint every 250k: its learning curve", sb3_algorithm="ppo", recipe="ppo",
+            variant="random-shifts", tags=frozenset({"standard", "pilot", "domain-randomized", "learning-curve"}),
+            trained_on="random-shifts"),
     RunSpec("ppo-residual", "sb3", "SB3 PPO through the residual set-point, ppo_residual.yml's reward",
             sb3_algorithm="ppo", recipe="ppo-residual", tags=frozenset({"engineered", "residual"})),
     RunSpec("ppo-residual-dr", "sb3", "ppo-residual with physics and wall drawn per episode (block pd-dr)",

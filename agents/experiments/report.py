@@ -321,3 +321,33 @@ def comparison_figures(entries: list[dict], traces: dict, groups: dict, out: Pat
         ax.legend(fontsize=8)
         _save(fig, out / "comparison_learning_curves.png", written)
     return written
+
+
+def learning_curve_figure(data: dict, path: Path) -> Path:
+    """A learning curve (agents.experiments.learning_curves' data): success at each band, collisions
+    and the IQM time to target against the environment steps, every seed drawn, the mean thick."""
+    plt = _pyplot()
+    bands = [key[len("success_"):] for key in data["mean"][0] if key.startswith("success_")] if data["mean"] else []
+    fig, axes = plt.subplots(1, 3, figsize=(13, 3.8))
+    for band, color in zip(bands, plt.cm.tab10.colors):
+        for rows in data["seeds"].values():
+            steps = [r["steps"] for r in rows]
+            axes[0].plot(steps, [r[f"success_{band}"] for r in rows], "-", color=color, alpha=0.35, lw=1)
+            axes[2].plot(steps, [r[f"time_iqm_{band}"] for r in rows], "-", color=color, alpha=0.35, lw=1)
+        axes[0].plot(data["budgets"], [r[f"success_{band}"] for r in data["mean"]], "o-", color=color, lw=2,
+                     label=f"band {band} rad")
+        axes[2].plot(data["budgets"], [r[f"time_iqm_{band}"] for r in data["mean"]], "o-", color=color, lw=2)
+    for rows in data["seeds"].values():
+        axes[1].plot([r["steps"] for r in rows], [r["collision_rate"] for r in rows], "-", color="C3", alpha=0.35)
+    axes[1].plot(data["budgets"], [r["collision_rate"] for r in data["mean"]], "o-", color="C3", lw=2)
+    axes[0].set(ylabel="success rate", ylim=(-0.05, 1.05))
+    axes[1].set(ylabel="collision rate", ylim=(-0.05, 1.05))
+    axes[2].set(ylabel="time to target, IQM [s] (3 s: not reached)")
+    for ax in axes:
+        ax.set(xscale="log", xlabel="environment steps")
+    axes[0].legend(fontsize=7)
+    fig.suptitle(f"{data['run']} on {data['env_id']}: {data['scored_on']}; {len(data['seeds'])} seeds (thin), "
+                 "their mean (thick)", fontsize=9)
+    written: list[Path] = []
+    _save(fig, path, written)
+    return path

@@ -123,6 +123,7 @@ def train_run(name: str, out: Path, seed: int, env_id: str = ENV_ID, control_mod
         return train_residual_ppo(control_mode, randomize_target, seed, total_timesteps, out, hyperparams,
                                   progress_bar=False, env_id=env_id, variant=run.variant, resume=resume,
                                   overwrite=overwrite)
+    hyperparams = hyperparams_of(name, env_id, control_mode) if hyperparams is None else hyperparams  # its variant's block
     return train_sb3(run.sb3_algorithm, out, env_id, control_mode, seed, hyperparams=hyperparams,
                      total_timesteps=total_timesteps, command=command, resume=resume, overwrite=overwrite)
 

@@ -35,7 +35,7 @@ import numpy as np
 
 from agents.algorithms.sb3.hyperparams import check_hyperparams
 from agents.algorithms.torch_ppo_config import Config
-from agents.experiments.evaluation import TASK_KWARGS, learned_policy
+from agents.experiments.evaluation import BAND_KEYS, TASK_KWARGS, learned_policy
 from agents.experiments.registry import spec
 from agents.experiments.report import condition_tables
 from agents.experiments.runs import hyperparams_of, is_finished, publish, run_dir, train_run
@@ -92,7 +92,8 @@ def point_hyperparams(algo: str, env_id: str, control_mode: str, point: dict) ->
 
 PLAIN_NAME = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
 PLAIN_VALUE = re.compile(r"[A-Za-z0-9_+-][A-Za-z0-9_.+-]*")
-EPISODE_ARRAYS = ("success", "collisions", "reach_time", "energy", "return")
+EPISODE_ARRAYS = ("success", "collisions", "reach_time", "energy", "return", *(k for pair in BAND_KEYS[1:] for k in pair))
+"""the per-episode arrays a trial keeps: the comparison entry's, every band's success and time among them"""
 
 
 def task_kwargs(hyper: dict) -> dict:
