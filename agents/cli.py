@@ -41,6 +41,7 @@ from agents.experiments.learning_curves import learning_curve, run_folders
 from agents.experiments.registry import RUNS, spec
 from agents.experiments.report import comparison_figures, comparison_markdown, evaluation_report, markdown_table
 from agents.experiments.runs import campaign, hyperparams_of, train_run
+from agents.experiments.search import SPACES, run_search
 from agents.experiments.targets import target_checks
 from agents.files import TRUST_ENV, RunLocked, write_json
 from agents.policies.optimal import CollocationConfig
@@ -440,6 +441,41 @@ def _curves(args, argv) -> dict:
     return data
 
 
+def _add_search(sub) -> None:
+    p = sub.add_parser("search", help="hyperparameter search of a standard SB3 run: Optuna through Ray Tune, ASHA",
+                       description="Trials of a registered SB3 run's block with points Optuna proposes, scored at "
+                                   "doubling rungs on the tuning episodes of the condition it trains on, stopped "
+                                   "early by ASHA (agents.experiments.search): search.json, search.md, best.yml and "
+                                   "rl_zoo.yml under --out; run again into the same --out to resume.")
+    p.add_argument("name", metavar="NAME", help="a registered SB3 run (e.g. ppo-c11-starts)")
+    p.add_argument("--trials", type=int, default=20)
+    p.add_argument("--max-steps", type=int, default=1_000_000, help="a trial's budget (the last rung)")
+    p.add_argument("--grace-steps", type=int, default=125_000, help="the first rung (ASHA's grace period)")
+    p.add_argument("--episodes", type=int, default=20, help="tuning episodes a rung")
+    p.add_argument("--env-id", choices=ENV_IDS, default=ENV_ID)
+    p.add_argument("--control-mode", choices=MODES, default="pd")
+    p.add_argument("--seed", type=int, default=0, help="the sampler's and the trials' training seed")
+    p.add_argument("--cpus", type=int, default=None, help="trials at once (default: every core)")
+    p.add_argument("--out", type=_folder, default=None, help="default: runs/search/NAME")
+    p.set_defaults(handler=_search)
+
+
+def _search(args, argv) -> dict:
+    for flag in ("--trials", "--max-steps", "--grace-steps", "--episodes"):
+        _positive(flag, getattr(args, flag[2:].replace("-", "_")))
+    run = spec(args.name)
+    if run.trainer != "sb3" or run.sb3_algorithm not in SPACES:
+        raise UserError(f"{args.name} is not a registered SB3 run of {sorted(SPACES)}; those are "
+                        + ", ".join(n for n, r in RUNS.items() if r.trainer == "sb3"))
+    if args.grace_steps > args.max_steps:
+        raise UserError(f"--grace-steps must be at most --max-steps ({args.max_steps}), got {args.grace_steps}")
+    out = args.out or Path("runs/search") / args.name
+    record = run_search(args.name, out, args.trials, args.max_steps, args.grace_steps, args.episodes, args.env_id,
+                        args.control_mode, args.seed, args.cpus)
+    print(f"{args.name}: {len(record['trials'])} trials, best {record['best']}; written to {out}")
+    return record
+
+
 def _add_sweep(sub) -> None:
     p = sub.add_parser("sweep", help="seeds x hyperparameter grids on Ray Tune",
                        description="Train and evaluate every (grid point, seed) of a registered run as a Ray Tune "
@@ -609,7 +645,7 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--debug", action="store_true", help="show the traceback of an error")
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
     for add in (_add_evaluate, _add_train, _add_torch_ppo, _add_campaign, _add_compare, _add_curves,
-                _add_learning_curve, _add_sweep,
+                _add_learning_curve, _add_search, _add_sweep,
                 _add_select, _add_optimal, _add_bench, _add_datasets):
         add(sub)
     return parser

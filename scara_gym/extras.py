@@ -14,7 +14,7 @@ EXTRAS = {
     "casadi": "control",
     "minari": "datasets", "h5py": "datasets",
     "rliable": "compare", "pandas": "compare",
-    "ray": "sweep",
+    "ray": "sweep", "optuna": "sweep",
     "numba_cuda": "cuda", "numba.cuda": "cuda",
     "mkdocs": "docs", "material": "docs", "mkdocstrings": "docs",
     "moviepy": "render",

@@ -73,16 +73,26 @@ class SB3Policy:
         # acting needs no replay buffer: a 1-entry plain one (a HER buffer would need the env)
         replay = {"replay_buffer_class": None, "replay_buffer_kwargs": {}, "buffer_size": 1} \
             if algo in ("sac", "td3") else None
-        self.model = algorithm_class(algo).load(io.BytesIO(checked.bytes("model.zip")), device="cpu",
-                                                custom_objects=replay)
-        self.normalizer = None
-        if "vecnormalize.pkl" in checked:
-            normalizer = pickle.loads(checked.bytes("vecnormalize.pkl"))
-            if normalizer.norm_obs:
-                self.normalizer = normalizer
-        self.mapping = residual_mapping(self.env.task, config["hyperparams"])
+        model = algorithm_class(algo).load(io.BytesIO(checked.bytes("model.zip")), device="cpu",
+                                           custom_objects=replay)
+        normalizer = pickle.loads(checked.bytes("vecnormalize.pkl")) if "vecnormalize.pkl" in checked else None
+        self._attach(model, normalizer, config["hyperparams"])
         self.config = config
         self.name = f"{algo} ({model_dir.name})"
+
+    @classmethod
+    def of_model(cls, env, model, hyper: dict, name: str = "live model") -> SB3Policy:
+        """The policy of a model in training (its VecNormalize's statistics as they are now, its
+        block's residual set-point): what a saved run of it would act, without saving it."""
+        policy = cls.__new__(cls)
+        policy.env, policy.config, policy.name = env.unwrapped, {"hyperparams": hyper}, name
+        policy._attach(model, model.get_vec_normalize_env(), hyper)
+        return policy
+
+    def _attach(self, model, normalizer, hyper: dict) -> None:
+        self.model = model
+        self.normalizer = normalizer if normalizer is not None and normalizer.norm_obs else None
+        self.mapping = residual_mapping(self.env.task, hyper)
 
     def reset(self) -> None:
         pass

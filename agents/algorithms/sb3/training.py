@@ -61,7 +61,7 @@ ALGORITHMS = ("ppo", "sac", "td3")
 # entries of a hyperparameter block that configure the run, not the SB3 algorithm
 RUN_KEYS = {"n_timesteps", "n_envs", "env_threads", "env_kwargs", "normalize", "residual_scale",
             "residual_deadzone", "net_arch", "log_std_init", "noise_std", "snapshot_freq",
-            "eval_freq", "eval_episodes", "torch_threads", "checkpoint_freq"}
+            "eval_freq", "eval_episodes", "torch_threads", "checkpoint_freq", "noise_type"}
 DEFAULT_TORCH_THREADS = 1
 """torch's threads of a run whose block names none: one per run (agents.algorithms.torch_ppo_config's
 reason: more cost most of the speed once another process wants a core)"""
@@ -120,13 +120,17 @@ def algorithm_kwargs(algo: str, hyper: dict, n_actions: int) -> dict:
     """SB3 constructor arguments from a hyperparameter block."""
     kwargs = {k: v for k, v in hyper.items() if k not in RUN_KEYS}
     policy_kwargs = {"net_arch": list(hyper.get("net_arch", [64, 64]))}
-    if algo == "ppo" and "log_std_init" in hyper:
+    if "log_std_init" in hyper and (algo == "ppo" or hyper.get("use_sde")):  # SAC's log std exists with gSDE only
         policy_kwargs["log_std_init"] = hyper["log_std_init"]
     if algo == "td3" and hyper.get("noise_std"):
         require("stable_baselines3")
-        from stable_baselines3.common.noise import NormalActionNoise
+        from stable_baselines3.common.noise import NormalActionNoise, OrnsteinUhlenbeckActionNoise
 
-        kwargs["action_noise"] = NormalActionNoise(np.zeros(n_actions), hyper["noise_std"] * np.ones(n_actions))
+        noise = {"normal": NormalActionNoise, "ornstein-uhlenbeck": OrnsteinUhlenbeckActionNoise}
+        kind = hyper.get("noise_type", "normal")
+        if kind not in noise:
+            raise ValueError(f"noise_type must be one of {sorted(noise)}, got {kind!r}")
+        kwargs["action_noise"] = noise[kind](np.zeros(n_actions), hyper["noise_std"] * np.ones(n_actions))
     if kwargs.get("replay_buffer_class") == "HerReplayBuffer":  # hindsight relabeling for the goal envs
         from agents.algorithms.sb3.her import KeptInfoHerReplayBuffer  # SB3's, with replay_buffer_kwargs' info_keys
 
@@ -221,10 +225,12 @@ def _restore_history(saved: bytes, eval_callback, best_mean_reward: float) -> No
 
 def train(algo: str, out: str | Path, env_id: str = ENV_ID, control_mode: str = "pd", seed: int = 0,
           hyperparams: dict | None = None, total_timesteps: int | None = None, progress_bar: bool = False,
-          command: str | None = None, resume: bool = False, overwrite: bool = False) -> Path:
+          command: str | None = None, resume: bool = False, overwrite: bool = False,
+          callbacks: list | None = None) -> Path:
     """Train one run into `out` (with ``resume``: continue the one there; with ``overwrite``:
     replace it), its folder locked for the whole run (agents.files.exclusive); returns `out`.
-    See the module docstring."""
+    ``callbacks``: SB3 callbacks added to the run's own (a hook, e.g. the hyperparameter
+    search's rung reports: agents.experiments.search). See the module docstring."""
     if env_id not in ENV_KWARGS:
         raise ValueError(f"env_id must be one of {sorted(ENV_KWARGS)}, got {env_id!r}")
     hyper = check_hyperparams(dict(hyperparams) if hyperparams is not None  # before the folder is made or locked
@@ -233,7 +239,7 @@ def train(algo: str, out: str | Path, env_id: str = ENV_ID, control_mode: str = 
         checks.integer("total_timesteps", total_timesteps, 1)
     with exclusive(Path(out)):
         return _train(algo, out, env_id, control_mode, seed, hyper, total_timesteps, progress_bar, command, resume,
-                      overwrite)
+                      overwrite, callbacks or [])
 
 
 def run_record(algo: str, env_id: str, control_mode: str, seed: int, hyper: dict) -> dict:
@@ -244,7 +250,7 @@ def run_record(algo: str, env_id: str, control_mode: str, seed: int, hyper: dict
 
 def _train(algo: str, out: str | Path, env_id: str, control_mode: str, seed: int, hyper: dict,
            total_timesteps: int | None, progress_bar: bool, command: str | None, resume: bool,
-           overwrite: bool) -> Path:
+           overwrite: bool, hooks: list) -> Path:
     require("torch")
     import torch
     require("stable_baselines3")
@@ -295,7 +301,7 @@ def _train(algo: str, out: str | Path, env_id: str, control_mode: str, seed: int
     clock = {"before": progress["train_seconds"], "started": time.perf_counter()}
     snapshots = _snapshot_callback(out, int(hyper.get("snapshot_freq", 50_000)), eval_callback, clock)
 
-    callbacks = [eval_callback, snapshots, _progress_callback(total_timesteps)]
+    callbacks = [eval_callback, snapshots, _progress_callback(total_timesteps), *hooks]
     if hyper.get("checkpoint_freq"):  # kept models for scara-agents select, with their normalizers
         callbacks.append(CheckpointCallback(per_env(hyper["checkpoint_freq"]), str(out / "checkpoints"),
                                             name_prefix=algo, save_vecnormalize=True))

@@ -1,0 +1,78 @@
+"""The hyperparameter search: points decoded into blocks, the objective, and a tiny search on a local Ray runtime."""
+
+import json
+
+import numpy as np
+import pytest
+
+pytest.importorskip("optuna")
+pytest.importorskip("ray")
+from agents.experiments import search  # noqa: E402
+from agents.experiments.runs import hyperparams_of  # noqa: E402
+from scara_gym.benchmark import protocol  # noqa: E402
+
+
+def test_a_point_becomes_a_checked_block():
+    hyper = search.trial_hyperparams("ppo-c11-starts", protocol.ENV_ID, "pd",
+                                     {"gamma_complement": 0.02, "net_arch": "256x256", "norm_reward": False,
+                                      "use_sde": True, "log_std_init": -2.0})
+    assert hyper["gamma"] == pytest.approx(0.98) and hyper["net_arch"] == [256, 256] and hyper["use_sde"] is True
+    assert hyper["normalize"] == {"norm_obs": True, "norm_reward": False}
+    assert hyper["env_kwargs"] == {"randomize_start": True}  # the run's own draws kept
+    with pytest.raises(ValueError, match="gamma"):
+        search.trial_hyperparams("ppo-c11-starts", protocol.ENV_ID, "pd", {"gamma_complement": 1.5})
+
+
+def test_every_space_names_what_the_issue_asks_to_search():
+    for space in search.SPACES.values():
+        assert {"gamma_complement", "learning_rate", "net_arch", "norm_reward"} <= set(space)
+    assert {"use_sde", "log_std_init", "ent_coef"} <= set(search.SPACES["ppo"])
+    assert {"use_sde", "ent_coef"} <= set(search.SPACES["sac"])
+    assert {"noise_type", "noise_std"} <= set(search.SPACES["td3"])
+
+
+def _result(success, collisions, times):
+    result = {"collisions": np.array(collisions, dtype=bool), "reach_time": np.array(times, dtype=float)}
+    for band in search.BAND_NAMES:
+        result[search.band_keys(band)[0]] = np.array(success, dtype=bool)
+    return result
+
+
+def test_the_objective_counts_clean_successes_and_breaks_ties_by_time():
+    assert search.objective(_result([1, 1, 1, 1], [0, 0, 0, 0], [1.0] * 4)) == pytest.approx(1 - 0.01)
+    collided = search.objective(_result([1, 1, 1, 1], [1, 0, 0, 0], [1.0] * 4))
+    assert collided == pytest.approx(0.75 - 0.01)  # a success with a collision earns nothing
+    missed = search.objective(_result([0, 0, 0, 0], [0, 0, 0, 0], [np.nan] * 4))
+    assert missed == pytest.approx(-0.03)  # the time limit
+    assert search.rungs(100, 800) == [100, 200, 400, 800] and search.rungs(100, 500) == [100, 200, 400, 500]
+
+
+def test_a_tiny_search_scores_its_trials_on_tuning_episodes_and_writes_the_best_block_twice(tmp_path):
+    yaml = pytest.importorskip("yaml")
+    base = hyperparams_of("ppo-c11-starts", protocol.ENV_ID)
+    base.update(n_envs=2, n_steps=64, batch_size=64, n_epochs=1, eval_freq=10_000, eval_episodes=1,
+                snapshot_freq=10_000, checkpoint_freq=None)
+    base.pop("checkpoint_freq")
+    space = dict(search.SPACES["ppo"])
+    space.update(n_steps=("choice", [64]), batch_size=("choice", [64]), n_epochs=("choice", [1]))
+    original = search.SPACES["ppo"]
+    search.SPACES["ppo"] = space
+    try:
+        record = search.run_search("ppo-c11-starts", tmp_path, trials=2, max_steps=256, grace_steps=128, episodes=2,
+                                   num_cpus=2, base=base)
+    finally:
+        search.SPACES["ppo"] = original
+    assert len(record["trials"]) == 2 and record["rungs"] == [128, 256]
+    assert record["condition"].startswith("c11-starts (tuning seeds)")
+    for trial in record["trials"]:
+        assert trial["ended"] in ("completed", "stopped by ASHA"), trial
+        assert [r["steps"] >= 128 for r in trial["rungs"]] and -0.031 <= trial["rungs"][0]["objective"] <= 1
+    best = record["trials"][record["best"]]
+    assert best["steps"] == max(t["steps"] for t in record["trials"])
+    written = json.loads((tmp_path / "search.json").read_text())
+    assert written["best"] == record["best"]
+    ours = yaml.safe_load((tmp_path / "best.yml").read_text())[protocol.ENV_ID]["pd-tuned"]
+    assert ours == best["hyperparams"]
+    zoo = yaml.safe_load((tmp_path / "rl_zoo.yml").read_text())[protocol.ENV_ID]
+    assert zoo["policy"] == "MlpPolicy" and zoo["gamma"] == best["hyperparams"]["gamma"]
+    assert zoo["policy_kwargs"].startswith("dict(net_arch=")
