@@ -280,7 +280,7 @@ class MPCPolicy:
             self.multipliers = (np.array(solution["lam_x"]).ravel(), np.array(solution["lam_g"]).ravel())
         action = np.clip(self.guess[self.HEAD:][self.VOLTAGES] / first_limit, -1.0, 1.0)
         if self.mode == "pd":  # the set-point for which the PD law gives these voltages at the step's start
-            action = self.env.task.setpoint_action(obs, self.env.task.pd_setpoint(obs, action))
+            action = self.env.setpoint_action(obs, self.env.pd_setpoint(obs, action))
         self._shift()
         return action
 

@@ -261,8 +261,6 @@ class ScaraTask:
         self.exact_switches = checks.flag("exact_switches", exact_switches)
         self.tolerance_weights = checks.tolerance_weights(tolerance_weights, R.STATE_GROUPS)
         num_robots = checks.integer("num_robots", num_robots, 1, MAX_ROBOTS)
-        self.arguments = {**config.as_dict(), "num_robots": num_robots}
-        """the configuration as keyword arguments of ScaraTask (kept for the shield's model)"""
         self.default_target = self.check_joints(target if target is not None else self.params.task.target, "target")
         self.default_start = self.check_joints(start if start is not None else self.params.task.start, "start")
         self.start_region = _start_region(randomize_start)

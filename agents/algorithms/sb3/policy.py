@@ -29,11 +29,11 @@ def algorithm_class(algo: str):
     return {"ppo": PPO, "sac": SAC, "td3": TD3}[algo]
 
 
-def residual_mapping(task, hyper: dict) -> ResidualSetpoint | None:
+def residual_mapping(env, hyper: dict) -> ResidualSetpoint | None:
     """The residual set-point a hyperparameter block acts through (its residual_scale), or None."""
     if "residual_scale" not in hyper:
         return None
-    return ResidualSetpoint(task, hyper["residual_scale"], hyper.get("residual_deadzone", 0.0))
+    return ResidualSetpoint(env, hyper["residual_scale"], hyper.get("residual_deadzone", 0.0))
 
 
 def shipped_models() -> list[str]:
@@ -80,7 +80,7 @@ class SB3Policy:
             normalizer = pickle.loads(checked.bytes("vecnormalize.pkl"))
             if normalizer.norm_obs:
                 self.normalizer = normalizer
-        self.mapping = residual_mapping(self.env.task, config["hyperparams"])
+        self.mapping = residual_mapping(self.env, config["hyperparams"])
         self.config = config
         self.name = f"{algo} ({model_dir.name})"
 
