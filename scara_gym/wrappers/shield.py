@@ -186,12 +186,13 @@ class Shield:
     """``policy``'s action where every model certifies that the backup can still bring the arm
     to rest clear of the wall after it, else the committed backup's (module docstring).
     ``interventions`` counts the steps of the current episode where the backup acted. ``env``
-    gives the models' task arguments and, for ``__call__``, the robot; ``filter`` shields any
-    task's robot with the same arguments (a vector environment's in training: shielded RL), with
-    ``policy`` None.
+    gives the models' configuration (``env.config``) and, for ``__call__``, the robot; ``filter``
+    shields any env's robot with the same configuration (a vector environment's in training:
+    shielded RL), with ``policy`` None. The env is read through its state surface only
+    (``snapshot``, ``noise_free_observation``, ``setpoint_action``).
 
     Args:
-        env (gymnasium.Env): the environment whose robot is shielded (its task's arguments make the models).
+        env (gymnasium.Env): the environment whose robot is shielded (its configuration makes the models).
         policy (callable | None): a callable obs -> action, or None for ``filter`` alone.
         params: the nominal model's parameters; None: the episode's own (an exact model).
         horizon: the most backup steps a rollout may take to come to rest.
