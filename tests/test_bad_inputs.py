@@ -272,13 +272,13 @@ def test_a_rejected_vector_step_or_reset_changes_nothing():
     actions = np.tile(GOOD, (3, 1))
     venv.step(actions)
     twin.step(actions)
-    before = venv.task.robots.copy()
+    before = venv._task.robots.copy()
     for bad in (np.full((3, 3), math.nan), np.zeros((2, 3)), np.zeros((3, 3), dtype=complex)):
         with pytest.raises(ValueError):
             venv.step(bad)
     with pytest.raises(ValueError):
         venv.reset(options={"target": [2.0, 2.0, 9.0]})
-    assert venv.task.robots.tobytes() == before.tobytes()
+    assert venv._task.robots.tobytes() == before.tobytes()
     for _ in range(5):
         assert np.array_equal(venv.step(actions)[0], twin.step(actions)[0])
 

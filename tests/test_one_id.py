@@ -37,24 +37,24 @@ def test_every_environment_class_defaults_to_the_latest_integration():
     for make in (ScaraEnv, ScaraGoalEnv, ScaraTask, lambda: ScaraVectorEnv(num_envs=2),
                  lambda: ScaraGoalVectorEnv(num_envs=2)):
         env = make()
-        assert integration_of(env if isinstance(env, ScaraTask) else env.task) == LATEST_INTEGRATION, make
+        assert integration_of(env if isinstance(env, ScaraTask) else env._task) == LATEST_INTEGRATION, make
 
 
 def test_make_and_make_vec_of_the_latest_id():
-    assert integration_of(gym.make(LATEST_ENV_ID).unwrapped.task) == LATEST_INTEGRATION
+    assert integration_of(gym.make(LATEST_ENV_ID).unwrapped._task) == LATEST_INTEGRATION
     venv = gym.make_vec(LATEST_ENV_ID, num_envs=2, vectorization_mode="vector_entry_point")
-    assert integration_of(venv.task) == LATEST_INTEGRATION
+    assert integration_of(venv._task) == LATEST_INTEGRATION
 
 
 def test_the_sb3_adapter_takes_an_id_and_defaults_to_the_latest():
     pytest.importorskip("stable_baselines3")
     from scara_gym.integrations.sb3 import SB3VecEnv
 
-    assert integration_of(SB3VecEnv(num_envs=2, control_mode="pd").venv.task) == LATEST_INTEGRATION
+    assert integration_of(SB3VecEnv(num_envs=2, control_mode="pd").venv._task) == LATEST_INTEGRATION
     older = SB3VecEnv(num_envs=2, env_id="Scara-C11-v1")
-    assert integration_of(older.venv.task) == scara_gym.ENV_VERSIONS["Scara-C11-v1"]
+    assert integration_of(older.venv._task) == scara_gym.ENV_VERSIONS["Scara-C11-v1"]
     randomized = SB3VecEnv(num_envs=2, env_id="Scara-C11-RandomWall-v1")
-    assert randomized.venv.task.randomization and integration_of(randomized.venv.task) == LATEST_INTEGRATION
+    assert randomized.venv._task.randomization and integration_of(randomized.venv._task) == LATEST_INTEGRATION
     with pytest.raises(ValueError, match="env_id must be one of"):
         SB3VecEnv(num_envs=2, env_id="Scara-C11-v9")
 
@@ -64,7 +64,7 @@ def test_the_protocol_runs_on_the_latest_id():
 
     assert protocol.ENV_ID == LATEST_ENV_ID
     env = protocol.get_condition("c11").make_env()
-    assert env.spec.id == LATEST_ENV_ID and integration_of(env.unwrapped.task) == LATEST_INTEGRATION
+    assert env.spec.id == LATEST_ENV_ID and integration_of(env.unwrapped._task) == LATEST_INTEGRATION
     seen = []
 
     class Still:
@@ -75,7 +75,7 @@ def test_the_protocol_runs_on_the_latest_id():
             return np.zeros(3, dtype=np.float32)
 
     def policy_factory(env):
-        seen.append(integration_of(env.unwrapped.task))
+        seen.append(integration_of(env.unwrapped._task))
         return Still()
 
     protocol.evaluate("c11-starts", policy_factory, episodes=1)

@@ -55,7 +55,7 @@ def residual_outputs(mapping: ResidualSetpoint, obs: np.ndarray, actions: np.nda
     """The residual outputs r in [-1, 1] that ``mapping`` turns into the recorded ``actions``
     ("pd" mode), with r = 0 where the recorded set-point is the target."""
     r = mapping.agent_actions(obs, actions)
-    offset = mapping.task.action_to_setpoint(np.asarray(actions, dtype=float)) - (obs[:, Q] + obs[:, TARGET_ERROR])
+    offset = mapping.env.action_to_setpoint(np.asarray(actions, dtype=float)) - (obs[:, Q] + obs[:, TARGET_ERROR])
     return np.where(np.abs(offset) < ON_TARGET, 0.0, r).astype(np.float32)
 
 
@@ -72,7 +72,7 @@ def transitions(dataset_id: str, config: BCConfig | None = None) -> tuple[np.nda
         actions.append(episode.actions)
     obs, actions = np.concatenate(obs).astype(np.float32), np.concatenate(actions).astype(np.float32)
     if config is not None and config.residual_scale is not None:
-        mapping = ResidualSetpoint(env.unwrapped.task, config.residual_scale, config.residual_deadzone)
+        mapping = ResidualSetpoint(env.unwrapped, config.residual_scale, config.residual_deadzone)
         actions = residual_outputs(mapping, obs, actions)
     return obs, actions
 
@@ -164,7 +164,7 @@ class BCPolicy:
         self.actor.eval()
         config = BCConfig(**{k: v for k, v in record.items() if k in BCConfig.__dataclass_fields__})
         self.mapping = None if config.residual_scale is None else \
-            ResidualSetpoint(env.unwrapped.task, config.residual_scale, config.residual_deadzone)
+            ResidualSetpoint(env.unwrapped, config.residual_scale, config.residual_deadzone)
         self.name = f"bc ({run_dir.name})"
 
     def reset(self) -> None:

@@ -223,11 +223,11 @@ def ppo_gradients(agent: Agent, x, actions, old_logprobs, advantages, returns, c
     return grads, (policy_loss, 0.5 * (value_error ** 2).mean(), clip_fraction)
 
 
-def residual_mapping(config: Config, task) -> ResidualSetpoint | None:
+def residual_mapping(config: Config, env) -> ResidualSetpoint | None:
     """The residual set-point the agent acts through (scara_gym.wrappers.residual), or None."""
     if config.residual_scale is None:
         return None
-    return ResidualSetpoint(task, config.residual_scale, config.residual_deadzone)
+    return ResidualSetpoint(env, config.residual_scale, config.residual_deadzone)
 
 
 def make_env(config: Config):
@@ -292,7 +292,7 @@ def _train(config: Config, resume: bool, hooks: list[Hook] | None) -> dict:
     # the CUDA env on numba's simulator returns CPU tensors: train where its tensors are
     device = getattr(envs.unwrapped, "device", device)
     obs_size, action_size = envs.single_observation_space.shape[0], envs.single_action_space.shape[0]
-    mapping = residual_mapping(config, envs.unwrapped.task)
+    mapping = residual_mapping(config, envs.unwrapped)
     if mapping is not None and device.type != "cpu":
         raise ValueError("residual_scale: the residual set-point maps numpy observations; train on device='cpu'")
     hooks = hooks_for(config, envs, mapping) if hooks is None else list(hooks)
@@ -371,7 +371,7 @@ def _train(config: Config, resume: bool, hooks: list[Hook] | None) -> dict:
             if mapping is not None:  # the agent's r becomes a set-point around the target
                 env_action = mapping(obs.numpy(), env_action)
             for hook in hooks:
-                env_action = hook.filter_actions(envs.unwrapped.task, env_action)
+                env_action = hook.filter_actions(envs.unwrapped, env_action)
             next_obs, reward, terminated, truncated, info = envs.step(env_action)
             for hook in hooks:
                 hook.on_step(env_action, next_obs, reward, terminated, truncated, info)
@@ -503,7 +503,7 @@ class TorchPPOPolicy:
         self.agent = Agent(saved["obs_size"], saved["action_size"], saved["hidden_size"], saved["clip_obs"])
         self.agent.load_state_dict(saved["state_dict"])
         self.agent.eval()
-        self.mapping = residual_mapping(run_config, unwrapped.task)
+        self.mapping = residual_mapping(run_config, unwrapped)
         # a run trained behind the shield acts behind it (its model: the nominal parameters)
         self.shield = Shield(env, None) if run_config.shield else None
         self.name = f"torch-ppo ({run_dir.name})"
@@ -516,4 +516,4 @@ class TorchPPOPolicy:
             x = self.agent.normalize(torch.as_tensor(np.asarray(obs))[None])
             action = self.agent.heads(x)[0][0].clamp(-1.0, 1.0).numpy().astype(np.float64)
         action = action if self.mapping is None else self.mapping(obs, action)[0]
-        return action if self.shield is None else self.shield.filter(self.shield.env.task, 0, action)[0]
+        return action if self.shield is None else self.shield.filter(self.shield.env, 0, action)[0]

@@ -45,8 +45,9 @@ class Hook:
         """After every vector step, with what the environment returned (numpy on the CPU env;
         SameStep autoreset: the ended rows' final observations are in info["final_obs"])."""
 
-    def filter_actions(self, task, env_actions: np.ndarray) -> np.ndarray:
-        """The actions the environment applies, from the ones the agent chose (mapped)."""
+    def filter_actions(self, envs, env_actions: np.ndarray) -> np.ndarray:
+        """The actions the environment applies, from the ones the agent chose (mapped); ``envs``:
+        the unwrapped vector env."""
         return env_actions
 
     def loss_gradients(self, agent, update: int) -> dict | None:
@@ -74,8 +75,8 @@ class DemoResets(Hook):
         if config.randomize_target or config.randomize_params or config.device != "cpu":
             raise ValueError("demo_resets: the reference path is the C11 target's with the nominal parameters, "
                              "on the CPU env; use it without randomize_target, randomize_params and device='cuda'")
-        self.task = envs.unwrapped.task
-        self.snapshots = reference_snapshots(config.env_id, params=self.task.params,
+        self.envs = envs.unwrapped
+        self.snapshots = reference_snapshots(config.env_id, params=self.envs.params,
                                              wall_margin=config.demo_wall_margin)
         self.probability = config.demo_resets
         self.rng = np.random.default_rng(config.seed)
@@ -90,8 +91,8 @@ class DemoResets(Hook):
         """obs with the robots of ``rows`` (just reset) moved to reference states where drawn."""
         for i in rows:
             if self.rng.random() < self.probability:
-                self.task.restore(int(i), self.snapshots[self.rng.integers(len(self.snapshots))])
-                obs[i] = self.task.obs[i]
+                self.envs.restore(int(i), self.snapshots[self.rng.integers(len(self.snapshots))])
+                obs[i] = self.envs.noise_free_observation(int(i))
         return obs
 
 
@@ -115,8 +116,7 @@ class DemoCloning(Hook):
             raise ValueError("demo_bc: the demonstration is the C11 target's voltages with the nominal parameters, "
                              "in the residual set-point's outputs; use it with control_mode='voltage' and "
                              "residual_scale, without randomize_target and randomize_params, on the CPU")
-        task = envs.unwrapped.task
-        observations, actions = reference_demonstration(config.env_id, params=task.params,
+        observations, actions = reference_demonstration(config.env_id, params=envs.unwrapped.params,
                                                         wall_margin=config.demo_wall_margin)
         self.obs = torch.as_tensor(observations.astype(np.float32))
         self.actions = torch.as_tensor(mapping.agent_actions(observations, actions), dtype=torch.float32)
@@ -174,11 +174,11 @@ class TargetReplay(Hook):
             raise ValueError(f"target_replay must be in [0, 1], got {config.target_replay!r}")
         if not config.randomize_target or config.device != "cpu":
             raise ValueError("target_replay: replays drawn targets; use it with randomize_target=True on the CPU env")
-        self.task = envs.unwrapped.task
+        self.envs = envs.unwrapped
         self.probability, self.capacity = config.target_replay, capacity
         self.rng = np.random.default_rng(config.seed)
         self.failed: list[np.ndarray] = []
-        self.targets = self.task.robot_params["target"].copy()  # each robot's current episode's
+        self.targets = self.envs.targets  # each robot's current episode's (a copy)
         self.replayed: list[np.ndarray | None] = [None] * len(self.targets)
 
     def on_episodes_end(self, obs: np.ndarray, rows: list[int], info: dict) -> np.ndarray:
@@ -197,10 +197,10 @@ class TargetReplay(Hook):
             self.replayed[i] = None
             if self.failed and self.rng.random() < self.probability:
                 target = self.failed[self.rng.integers(len(self.failed))]
-                self.task.reset_robot(i, self.rng, {"target": target})
-                obs[i] = self.task.obs[i]
+                self.envs.reset_robot(i, {"target": target}, rng=self.rng)
+                obs[i] = self.envs.noise_free_observation(i)
                 self.replayed[i] = target
-            self.targets[i] = self.task.robot_params["target"][i]
+            self.targets[i] = self.envs.targets[i]
         return obs
 
 
@@ -215,10 +215,10 @@ class ShieldedActions(Hook):
         self.shield = Shield(gym.make(config.env_id, control_mode=config.control_mode), None)
         self.interventions = 0
 
-    def filter_actions(self, task, env_actions):
+    def filter_actions(self, envs, env_actions):
         env_actions = np.array(env_actions, dtype=np.float64)
         for i in range(len(env_actions)):
-            env_actions[i], replaced = self.shield.filter(task, i, env_actions[i])
+            env_actions[i], replaced = self.shield.filter(envs, i, env_actions[i])
             self.interventions += replaced
         return env_actions
 

@@ -40,4 +40,4 @@ class SetpointPolicy:
         raise NotImplementedError
 
     def __call__(self, obs: np.ndarray) -> np.ndarray:
-        return self.env.task.setpoint_action(obs, self.setpoint(np.asarray(obs, dtype=float)))
+        return self.env.setpoint_action(obs, self.setpoint(np.asarray(obs, dtype=float)))

@@ -36,7 +36,7 @@ Each solve's wall-clock time is kept in ``solve_times``, the solves IPOPT did no
 ``failures`` (the plan it stopped at is used).
 
 In a "pd"-mode environment the MPC plans the same voltages and commands the set-point for which
-the PD law gives them at the step's start (``ScaraTask.pd_setpoint``: a saturated voltage asks
+the PD law gives them at the step's start (the env's ``pd_setpoint``: a saturated voltage asks
 for a set-point past saturation). Within the step the law's voltage then follows the state
 (P q' + D q'' volts per second where it is not saturated), so the plan is applied exactly only
 where it saturates; the next step's solve starts from the measured state. Planning the
@@ -280,7 +280,7 @@ class MPCPolicy:
             self.multipliers = (np.array(solution["lam_x"]).ravel(), np.array(solution["lam_g"]).ravel())
         action = np.clip(self.guess[self.HEAD:][self.VOLTAGES] / first_limit, -1.0, 1.0)
         if self.mode == "pd":  # the set-point for which the PD law gives these voltages at the step's start
-            action = self.env.task.setpoint_action(obs, self.env.task.pd_setpoint(obs, action))
+            action = self.env.setpoint_action(obs, self.env.pd_setpoint(obs, action))
         self._shift()
         return action
 

@@ -52,7 +52,7 @@ TIMED = {  # label -> constructor arguments over Scara-C11-v2's
 def fastest_modes(cases: int = 40) -> None:
     """Eigenvalues of the Jacobian (forward differences) at control-step starts, set-point applied."""
     env = gym.make("Scara-C11-v2", control_mode="pd")
-    task = env.unwrapped.task
+    task = env.unwrapped._task
     rng = np.random.default_rng(1)
     env.reset(seed=1)
     p, config = task.robot_params[0], task.step_config[0]

@@ -25,7 +25,7 @@ CONTROL_DT = 0.01
 
 def counts(env_id: str, steps: int = 1500, seed: int = 1) -> None:
     env = gym.make(env_id, control_mode="pd")
-    task = env.unwrapped.task
+    task = env.unwrapped._task
     rng = np.random.default_rng(seed)
     env.reset(seed=seed)
     rows = []
@@ -51,7 +51,7 @@ def counts(env_id: str, steps: int = 1500, seed: int = 1) -> None:
 def held_mode_cases(count: int = 60, skip: int = 20, seed: int = 1) -> tuple[list, object, object]:
     """Robot records at control-step starts (their set-point applied), from random pd actions."""
     env = gym.make("Scara-C11-v2", control_mode="pd")
-    task = env.unwrapped.task
+    task = env.unwrapped._task
     rng = np.random.default_rng(seed)
     env.reset(seed=seed)
     cases = []

@@ -41,14 +41,13 @@ def timed_episode(env, shield_class, policy_class, seed: int, options) -> tuple[
     """Each decision's time [s] (the shield's filter) over one episode, and its collisions."""
     shield = shield_class(env, None, robust="all")
     policy = policy_class(env)
-    task = env.unwrapped.task
     obs, _ = env.reset(seed=seed, options=options)
     policy.reset()
     times = []
     for _ in range(300):
         action = policy(obs)
         started = time.perf_counter()
-        action, _ = shield.filter(task, 0, action)
+        action, _ = shield.filter(env, 0, action)
         times.append(time.perf_counter() - started)
         obs, _, terminated, truncated, info = env.step(action)
         if terminated or truncated:

@@ -31,7 +31,7 @@ def main(name: str, episodes: int, which: str | None = None) -> None:
         collisions += result["collisions"] > 0
         misses += not result["success"]
         if result["collisions"] or not result["success"]:
-            params = env.unwrapped.task.episode_params[0]
+            params = env.unwrapped.episode_params
             print(f"seed {seed}: collisions {result['collisions']}, success {result['success']},",
                   {path: round(leaf_value(params, path), 4) for path in paths}, flush=True)
     print(f"{name} ({which or 'evaluation'}), {episodes} episodes: {collisions} collisions, {misses} not arrived; "

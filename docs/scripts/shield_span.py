@@ -57,12 +57,11 @@ def main(episodes: int, robots: int) -> None:
         shield = Shield(env, adversary, robust="all")
         adversary.shield = shield
         between = [shield.params.replace(physics.draw(rng)).replace(shield.zone) for _ in range(robots)]
-        task = env.unwrapped.task
-        check = ScaraTask(**{**task.arguments, "num_robots": robots})
+        check = ScaraTask(env.unwrapped.config, num_robots=robots)
         obs, _ = env.reset(seed=episode)
         for step in range(150):
             action = adversary(obs)
-            snapshot = task.snapshot(0)
+            snapshot = env.unwrapped.snapshot()
             if step % EVERY == 0 and shield.certify(snapshot, action):  # the rollouts the shield accepts
                 setpoint = shield.backup_setpoint(snapshot)
                 models = rollouts(shield.model_task, shield.model_params, snapshot, action, setpoint)
@@ -72,7 +71,7 @@ def main(episodes: int, robots: int) -> None:
                 worst = np.maximum(worst, [beyond[..., 0].max(), beyond[..., 1][others[..., 1] < low[..., 1]].max(
                     initial=0.0)])
                 states += 1
-            action, replaced = shield.filter(task, 0, action)
+            action, replaced = shield.filter(env, 0, action)
             shield.interventions += replaced
             obs, _, terminated, truncated, _ = env.step(action)
             if terminated or truncated:

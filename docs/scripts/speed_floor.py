@@ -56,7 +56,7 @@ def step_counts(steps: int = 3000) -> None:
     print(f"2. integration steps (rejected included) per control step, {steps} random 'pd' actions, seed 0")
     for label, (env_id, kwargs) in CANDIDATES.items():
         env = gym.make(env_id, control_mode="pd", **kwargs)
-        task = env.unwrapped.task
+        task = env.unwrapped._task
         arrays = (task.robots, task.robot_params, task.step_config, task.constants, task.log, task.outcomes, task.obs)
         robot, outcome = task.robots[0], task.outcomes[0]
         env.reset(seed=0)

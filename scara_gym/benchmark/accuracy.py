@@ -84,7 +84,7 @@ def episode_plan(rng: np.random.Generator, index: int) -> EpisodePlan:
 
 
 def _events(env) -> list[tuple[int, int, float]]:
-    task = env.task
+    task = env._task
     n = min(int(task.robots[0]["n_events"]), task.log.shape[1])
     return [(int(e["code"]), int(e["axis"]), float(e["time"])) for e in task.log[0][:n]]
 
@@ -142,7 +142,7 @@ def compare_episode(plan: EpisodePlan, rtol: float = DEFAULT_RTOL, atol: float =
         if ends[0] or ends[1]:
             break
     worst["event_time"], unpaired = _paired_time_errors(events, ref_events)
-    rhs = int(runs[0].task.robots[0]["n_rhs"])  # counted over the episode
+    rhs = int(runs[0]._task.robots[0]["n_rhs"])  # counted over the episode
     critical_switches = sum(code in (R.EV_CRITICAL_ON, R.EV_CRITICAL_OFF) for code, _, _ in ref_events)
     # in the voltage mode every critical switch jumps the voltage (the limit the action scales doubles
     # or halves); in the pd mode only an axis saturated at the switch does

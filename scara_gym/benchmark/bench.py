@@ -186,7 +186,7 @@ def bench_cost(env_ids=None, steps: int = 1000, control_mode: str = "pd", rounds
                 best["timers"] = run["timers"]
     rows = []
     for env_id, env in envs.items():
-        task = env.unwrapped.task
+        task = env.unwrapped._task
         run = runs[env_id]
         timers, rhs, integration_steps, untimed = run["timers"], run["rhs"], run["steps"], run["untimed"]
         robot = task.robots[0]
@@ -213,7 +213,7 @@ def _compiled_run(env, steps: int) -> dict:
 
     from scara_gym.envs.core import N_TIMERS, profile_robot, step_robot
 
-    task = env.unwrapped.task
+    task = env.unwrapped._task
     arrays = (task.robots, task.robot_params, task.step_config, task.constants, task.log, task.outcomes, task.obs)
     robot, outcome = task.robots[0], task.outcomes[0]
     env.action_space.seed(0)
@@ -296,7 +296,7 @@ def bench_tolerance(steps: int, tolerances=TOLERANCES) -> list[dict]:
             if terminated:  # reached the target by chance: compare the common part
                 break
         elapsed = time.perf_counter() - started
-        return np.array(positions), len(positions) / elapsed, env.task.robots["n_rhs"][0] / len(positions)
+        return np.array(positions), len(positions) / elapsed, env._task.robots["n_rhs"][0] / len(positions)
 
     reference, _, _ = run(*TIGHT)  # also loads the compiled code before any timed run
     runs = {tol: run(*tol) for tol in tolerances}
@@ -409,7 +409,7 @@ def bench_gpu(sizes=GPU_SIZES, steps: int = 50, env_id: str = "Scara-C11-v1") ->
         for action in actions:
             cpu.step(action[:compared].cpu().numpy())
         q_gpu = gpu.unwrapped.d_robots.copy_to_host()["x"][:compared, :3]
-        q_cpu = cpu.unwrapped.task.robots["x"][:, :3]
+        q_cpu = cpu.unwrapped._task.robots["x"][:, :3]
         rows.append({"n": n, "rate": rate, "q_difference": float(np.abs(q_gpu - q_cpu).max())})
         gpu.close(), cpu.close()
     return rows
@@ -431,7 +431,7 @@ def bench_warp_bound(control_mode: str = "voltage", n: int = 4096, steps: int = 
 
     venv = gym.make_vec(env_id, num_envs=n, vectorization_mode="vector_entry_point", control_mode=control_mode)
     venv.reset(seed=seed)
-    counts = venv.unwrapped.task.robots["n_rhs"]  # per episode: a reset robot starts again from 0
+    counts = venv.unwrapped._task.robots["n_rhs"]  # per episode: a reset robot starts again from 0
     rng = np.random.default_rng(seed)
     previous, last_work, rows = counts.copy(), None, []
     for step in range(steps):

@@ -44,9 +44,9 @@ def band_keys(name: str) -> tuple[str, str]:
     return ("success", "reach_time") if name == C11_BAND else (f"success_{name}", f"reach_time_{name}")
 
 
-def _target_error(task) -> float:
-    """max_i |q_i - q^_i| of the (first) robot's true state."""
-    return float(np.max(np.abs(task.robots["x"][0, STATE_Q:STATE_Q + 3] - task.robot_params["target"][0])))
+def _target_error(env) -> float:
+    """max_i |q_i - q^_i| of the (unwrapped single) env's robot's true state."""
+    return float(np.max(np.abs(env.state[STATE_Q:STATE_Q + 3] - env.target)))
 
 
 def band_times(errors, times, located: float | None = None) -> dict[str, float]:
@@ -74,19 +74,20 @@ def run_episode(env, policy, seed: int | None = None, options: dict | None = Non
         policy.reset()
     unwrapped = env.unwrapped
     # measured on the true flat observation: the same for noisy and goal-conditioned envs
-    state = unwrapped.task.obs[0]
+    state = unwrapped.noise_free_observation()
     total, steps, peak = 0.0, 0, np.zeros(3)
     trace = [(0.0, *_trace_row(state))] if record else None
-    errors, times = [_target_error(unwrapped.task)], [0.0]  # at the start and every step's end (band_times)
+    errors, times = [_target_error(unwrapped)], [0.0]  # at the start and every step's end (band_times)
     info = {}
     while True:
         obs, reward, terminated, truncated, info = env.step(policy(obs))
         total += reward
         steps += 1
+        state = unwrapped.noise_free_observation()
         peak = np.maximum(peak, np.abs(state[CURRENTS]))
         if record:
             trace.append((info["time"], *_trace_row(state)))
-        errors.append(_target_error(unwrapped.task))
+        errors.append(_target_error(unwrapped))
         times.append(info["time"])
         if terminated or truncated:
             break

@@ -232,7 +232,7 @@ def shift_condition(path: str, factor: float) -> Condition:
 
 def draws_nothing(env) -> bool:
     """Whether the environment itself draws nothing per episode (start, target, parameters, noise)."""
-    task = env.unwrapped.task
+    task = env.unwrapped._task
     return not (task.randomize_target or task.randomization or task.start_region is not None
                 or task.sim_to_real.noisy)
 

@@ -16,6 +16,7 @@ from gymnasium.vector.utils import batch_space
 
 from scara_gym.envs.config import EnvConfig, make_config
 from scara_gym.envs.core import INFO_FIELDS, N_PARAMS_FLOATS, REWARD_TERMS, STATUS_NO_PLAN
+from scara_gym.envs.surface import TaskSurface
 from scara_gym.envs.task import RESET_OPTIONS, ScaraTask, check_actions, vector_seeds
 from scara_gym.envs.vector import check_autoreset_mode, check_reset_mask
 from scara_gym.model import checks, records as R
@@ -63,7 +64,7 @@ def load_backend():
     return torch, cuda, cuda_kernels
 
 
-class ScaraCudaVectorEnv(VectorEnv):
+class ScaraCudaVectorEnv(TaskSurface, VectorEnv):
     """N copies of a Scara-C11 environment stepped on a CUDA GPU, one thread per robot.
 
     The arguments are those of :class:`~scara_gym.envs.vector.ScaraVectorEnv` (num_envs,
@@ -98,6 +99,12 @@ class ScaraCudaVectorEnv(VectorEnv):
     ahead. ``sensor_noise`` (derived entries from noisy measurements) is not implemented here and
     is refused with a ValueError, and so is ``randomize_start`` with a delay or a rate limit in
     "pd" mode (the autoreset's neutral action holds the default start). Rendering is not supported.
+
+    Of the state surface (:mod:`scara_gym.envs.surface`) it has the configuration (``config``,
+    ``params``, ``control_mode`` ...) and the pure set-point maps (``setpoint_to_action``,
+    ``action_to_setpoint``). The per-robot methods of the CPU vector env (snapshots, the PD maps
+    with a robot's parameters, noise-free observations) are not offered: the robots' states and
+    episode parameters live on the device, and reading one robot's costs a transfer per call.
     """
 
     metadata = {"autoreset_mode": AutoresetMode.NEXT_STEP, "render_modes": []}
@@ -118,12 +125,11 @@ class ScaraCudaVectorEnv(VectorEnv):
         self.threads_per_block = checks.integer("threads_per_block", threads_per_block, 1, 1024)
         if kwargs.pop("render_mode", None) is not None:
             raise ValueError("the vector environment does not render; use render_mode=None")
-        self.task = task = ScaraTask(make_config(config, kwargs, self.config_defaults), num_robots=num_envs)
+        self._task = task = ScaraTask(make_config(config, kwargs, self.config_defaults), num_robots=num_envs)
         self.num_envs = n = num_envs
         self.metadata = {**type(self).metadata, "autoreset_mode": autoreset_mode}
         self.autoreset_mode = autoreset_mode
         self.render_mode = None
-        self.control_dt = task.control_dt
         self.device = torch.device("cpu" if self.simulator else "cuda")
         self.single_action_space = spaces.Box(-1.0, 1.0, shape=(3,), dtype=np.float32)
         self.single_observation_space = spaces.Box(task.obs_low, task.obs_high, dtype=np.float32)
@@ -227,7 +233,7 @@ class ScaraCudaVectorEnv(VectorEnv):
     def _neutral_actions(self, starts: np.ndarray):
         """The actions of robots at rest at ``starts``: their set-points in "pd" mode, zero volts
         in "voltage" mode (the actuator's state before an episode), as a tensor."""
-        task = self.task
+        task = self._task
         neutral = np.array([task.setpoint_to_action(start) for start in starts]) if task.control_mode == "pd" \
             else np.zeros((len(starts), 3))
         return self._torch.from_numpy(neutral).to(self.device)
@@ -256,7 +262,7 @@ class ScaraCudaVectorEnv(VectorEnv):
         mask = check_reset_mask(options, self.num_envs, self.autoreset_mode)
         if mask is not None:
             return self._reset_masked(mask, seeds, options)
-        task, n = self.task, self.num_envs
+        task, n = self._task, self.num_envs
         if self.fixed_plans and not options:  # every episode starts alike: no draws, nothing per robot
             plans = [task.episode_start(None, None)] * n
         else:
@@ -311,7 +317,7 @@ class ScaraCudaVectorEnv(VectorEnv):
         others keep their episodes and their last observations."""
         if not self._started:
             raise RuntimeError("options['reset_mask']: call reset() without a mask first (no robot has begun)")
-        torch, task, n = self._torch, self.task, self.num_envs
+        torch, task, n = self._torch, self._task, self.num_envs
         robots = np.flatnonzero(mask)
         rngs = {i: self._rng(i) if seeds[i] is None else seeding.np_random(seeds[i])[0] for i in robots}
         plans = {i: task.episode_start(rng, options) for i, rng in rngs.items()}  # all checked before any change
@@ -358,7 +364,7 @@ class ScaraCudaVectorEnv(VectorEnv):
     def _refill(self, rows: np.ndarray, episodes: np.ndarray) -> None:
         """Draw plans for robots `rows` (at episodes `episodes`) until each holds plan_depth - 1 ahead."""
         depth = self.plans.shape[1]
-        task = self.task
+        task = self._task
         for i, episode in zip(rows, episodes[rows]):
             while self.plans_made[i] < episode + depth - 1:
                 e = self.plans_made[i] + 1
@@ -399,7 +405,7 @@ class ScaraCudaVectorEnv(VectorEnv):
         d_actions = self._numba_array(applied)
         self.d_flags.copy_to_device(self._flags_start)
         kernels.step_kernel[self._blocks, self.threads_per_block](
-            same_step, self.max_episode_steps, self.task.collision_mode == "terminate", self._goal_threshold,
+            same_step, self.max_episode_steps, self._task.collision_mode == "terminate", self._goal_threshold,
             d_actions, self.d_robots, self.d_params, self.d_params_flat, self.d_config, self.d_task, self.d_log,
             self.d_outcomes, self.d_obs, self.d_prev_done, self.d_plans, self.d_plan_params, self.varied_params,
             self.d_plans_made, self.d_episodes, self.d_reward, self.d_terminated, self.d_truncated, self.d_final_obs,
@@ -481,7 +487,7 @@ class ScaraCudaVectorEnv(VectorEnv):
         if status == STATUS_NO_PLAN:
             raise RuntimeError(f"sub-environment {i} ran out of episode plans (a bug: the host refills them)")
         raise SimulationError(f"sub-environment {i}: "
-                              + failure_message(status, robot, self.task.step_config[0], self.task.params))
+                              + failure_message(status, robot, self._task.step_config[0], self._task.params))
 
     # -- host views (copies), for tests and inspection -----------------------------------
     @property

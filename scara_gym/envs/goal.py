@@ -252,12 +252,12 @@ class ScaraGoalEnv(_GoalAPI, ScaraEnv):
         super().__init__(config, render_mode=render_mode, **overrides)
         self.rules = GoalRules(reward_type, collision_penalty, self.params.task.accuracy, self.collision_mode,
                                goal_tolerance)
-        self.observation_space = _goal_spaces(self.task)
+        self.observation_space = _goal_spaces(self._task)
 
     reward_type = property(lambda self: self.rules.reward_type)
 
     def _goal_obs(self, obs: np.ndarray) -> dict:
-        task = self.task
+        task = self._task
         return {"observation": obs[KEPT], "achieved_goal": task.obs[0][Q].copy(),
                 "desired_goal": task.robot_params["target"][0].astype(np.float32)}
 
@@ -291,18 +291,18 @@ class ScaraGoalVectorEnv(_GoalAPI, ScaraVectorEnv):
                  reward_type: str = "sparse", collision_penalty: float = 50.0, goal_tolerance: float | None = None,
                  config: EnvConfig | None = None, **kwargs) -> None:
         super().__init__(num_envs, max_episode_steps, autoreset_mode, num_threads, config, **kwargs)
-        self.rules = GoalRules(reward_type, collision_penalty, self.task.params.task.accuracy,
-                               self.task.collision_mode, goal_tolerance)
-        self.single_observation_space = _goal_spaces(self.task)
+        self.rules = GoalRules(reward_type, collision_penalty, self._task.params.task.accuracy,
+                               self._task.collision_mode, goal_tolerance)
+        self.single_observation_space = _goal_spaces(self._task)
         self.observation_space = batch_space(self.single_observation_space, self.num_envs)
 
     def _agent_view(self, obs: np.ndarray) -> dict:
-        task = self.task
+        task = self._task
         return {"observation": obs[:, KEPT], "achieved_goal": task.obs[:, Q].copy(),
                 "desired_goal": task.robot_params["target"].astype(np.float32)}
 
     def _judge(self, reward, terminated, info, resetting):
-        outcome = self.rules.outcome(self.task.obs[:, Q], self.task.robot_params["target"].astype(np.float32), info)
+        outcome = self.rules.outcome(self._task.obs[:, Q], self._task.robot_params["target"].astype(np.float32), info)
         stepped = ~resetting  # a robot reset in this step (NextStep) gets reward 0 and goes on
         terms = {name: np.where(stepped, value, 0.0) for name, value in outcome.terms.items()}
         info["reward_terms"] = terms
@@ -332,11 +332,11 @@ class ScaraCudaGoalVectorEnv(_GoalAPI, ScaraCudaVectorEnv):
                  reward_type: str = "sparse", collision_penalty: float = 50.0, goal_tolerance: float | None = None,
                  config: EnvConfig | None = None, **kwargs) -> None:
         super().__init__(num_envs, max_episode_steps, autoreset_mode, config=config, **kwargs)
-        self.rules = GoalRules(reward_type, collision_penalty, self.task.params.task.accuracy,
-                               self.task.collision_mode, goal_tolerance)
+        self.rules = GoalRules(reward_type, collision_penalty, self._task.params.task.accuracy,
+                               self._task.collision_mode, goal_tolerance)
         self._goal_threshold = self.rules.threshold
         self._scale = self._torch.from_numpy(DISTANCE_SCALE).to(self.device)
-        self.single_observation_space = _goal_spaces(self.task)
+        self.single_observation_space = _goal_spaces(self._task)
         self.observation_space = batch_space(self.single_observation_space, self.num_envs)
 
     def _agent_view(self, obs, clean_obs, targets):

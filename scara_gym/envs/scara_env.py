@@ -10,12 +10,13 @@ import numpy as np
 from gymnasium import spaces
 
 from scara_gym.envs.config import EnvConfig, arguments_markdown, make_config
+from scara_gym.envs.surface import TaskSurface
 from scara_gym.envs.task import OBSERVATION_NAMES, ScaraTask, check_actions, observation_table
 from scara_gym.model import checks, records as R
 from scara_gym.model.params import ScaraParams
 
 
-class ScaraEnv(gym.Env):
+class ScaraEnv(TaskSurface, gym.Env):
     """The ARGESIM C11 SCARA robot: reach the target fast without hitting the wall.
 
     The benchmark's point-to-point move from q = (0, 0, 0) to q^ = (2, 2, 0.3) with the
@@ -156,11 +157,11 @@ class ScaraEnv(gym.Env):
     """the configuration an instance starts from before its config and overrides (a subclass's own)"""
 
     def __init__(self, config: EnvConfig | None = None, *, render_mode: str | None = None, **overrides) -> None:
-        self.task = ScaraTask(make_config(config, overrides, self.config_defaults), num_robots=1)
+        self._task = ScaraTask(make_config(config, overrides, self.config_defaults), num_robots=1)
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
             raise ValueError(f"render_mode must be one of {self.metadata['render_modes']} or None, "
                              f"got {render_mode!r}")
-        task = self.task
+        task = self._task
         self.render_mode = render_mode
         self.metadata = {**type(self).metadata, "render_fps": 1.0 / task.control_dt}
         self.action_space = spaces.Box(-1.0, 1.0, shape=(3,), dtype=np.float32)
@@ -179,20 +180,11 @@ class ScaraEnv(gym.Env):
                 gym.logger.warn("render_mode='human' without a display (DISPLAY or WAYLAND_DISPLAY is not set): "
                                 "frames are drawn off-screen and shown nowhere; use render_mode='rgb_array' to get them")
 
-    # -- the task's configuration, read-only ---------------------------------------------
-    params = property(lambda self: self.task.params)
-    control_mode = property(lambda self: self.task.control_mode)
-    obstacle = property(lambda self: self.task.obstacle)
-    collision_mode = property(lambda self: self.task.collision_mode)
-    randomize_target = property(lambda self: self.task.randomize_target)
-    reward_weights = property(lambda self: self.task.reward_weights)
-    control_dt = property(lambda self: self.task.control_dt)
-    time_limit = property(lambda self: self.task.time_limit)
-
+    # -- the state surface (scara_gym.envs.surface): what agents and wrappers use ------------
     @property
     def episode_params(self) -> ScaraParams:
-        """The parameters of the current episode: ``params`` unless randomized or overridden."""
-        return self.task.episode_params[0]
+        """The model parameters of the current episode: ``params`` unless randomized or overridden."""
+        return self._task.episode_params[0]
 
     @property
     def state(self) -> np.ndarray:
@@ -206,29 +198,99 @@ class ScaraEnv(gym.Env):
 
     @property
     def target(self) -> np.ndarray:
-        return self.task.robot_params["target"][0].copy()
+        """The current episode's target q^ [rad, rad, m] (float64, a copy)."""
+        return self._task.robot_params["target"][0].copy()
 
-    def setpoint_to_action(self, setpoint) -> np.ndarray:
-        """The "pd" action (float64, unclipped) that commands the set-point q^ [rad, rad, m]."""
-        return self.task.setpoint_to_action(setpoint)
+    def snapshot(self) -> dict:
+        """The robot's state, to put it back with :meth:`restore`.
 
-    def action_to_setpoint(self, action) -> np.ndarray:
-        return self.task.action_to_setpoint(action)
+        Returns:
+            A dict of copies: "x" (state vector), "hold" (current holds), "t" (time [s]),
+            "step_size" (the integrator's next step), "episode_steps", "target" and "params"
+            (the episode's), and with an action_delay or a rate limit the actuator line's
+            "pending" and "applied" actions. Restoring it makes the episode go on bit for bit
+            as it went on from the snapshot (the observation noise aside, drawn from the env's
+            generator).
+        """
+        return self._task.snapshot(0)
+
+    def restore(self, snapshot: dict) -> None:
+        """Put the robot in a snapshot's state; the episode goes on from there (the step's reward
+        terms zero, the episode not ended). For starts along a recorded trajectory, as in
+        reference state initialization, and for look-ahead (a shield's, a planner's).
+
+        Args:
+            snapshot: a :meth:`snapshot` (of this env or a vector env's robot) of an env with the
+                same sim-to-real options; the current episode must have its target and
+                parameters (reset to those first).
+
+        Raises:
+            ValueError: the target, parameters or actuator line differ from the snapshot's.
+        """
+        self._task.restore(0, snapshot)
+        self._needs_reset = False
+        self._trace = [self._tip()]
+
+    def noise_free_observation(self) -> np.ndarray:
+        """The observation of the robot's true state, without sensor or observation noise.
+
+        Returns:
+            The flat observation (float32, shape (18,), a copy); what ``step`` returned where the
+            env adds no noise (a goal env's flat observation too).
+        """
+        return self._task.obs[0].copy()
+
+    def setpoint_action(self, obs, setpoint) -> np.ndarray:
+        """The action that commands a set-point in this env's control mode: the clipped "pd"
+        action, or in "voltage" mode the C11 PD law's voltages on the observation (:meth:`pd_action`).
+
+        Args:
+            obs: one flat observation (18,) or a batch (n, 18).
+            setpoint: q^ [rad, rad, m], (3,) or (n, 3).
+
+        Returns:
+            The action(s), float64, (3,) or (n, 3).
+        """
+        return self._task.setpoint_action(obs, setpoint)
 
     def pd_action(self, obs, setpoint) -> np.ndarray:
-        """The "voltage"-mode action that applies the C11 PD law to a set-point on an
-        observation (see :meth:`ScaraTask.pd_action`)."""
-        return self.task.pd_action(obs, setpoint)
+        """The "voltage"-mode action that applies the C11 PD law to a set-point on an observation:
+        U / limit, with the widened limit where the observation says critical (what "pd" mode
+        does, evaluated once per control step), with the episode's parameters.
+
+        Args:
+            obs: one flat observation (18,) or a batch (n, 18).
+            setpoint: q^ [rad, rad, m], (3,) or (n, 3).
+
+        Returns:
+            The voltage action(s), float64, (3,) or (n, 3).
+        """
+        return self._task.pd_action(obs, setpoint)
+
+    def pd_setpoint(self, obs, action, saturation_margin: float = 0.2) -> np.ndarray:
+        """The inverse of :meth:`pd_action`: the set-point for which the C11 PD law gives the
+        "voltage"-mode action on the observation.
+
+        Args:
+            obs: one flat observation (18,) or a batch (n, 18).
+            action: the voltage action(s), (3,) or (n, 3).
+            saturation_margin: a saturated action (|action| >= 0.999) asks this share more, to
+                stay saturated when the set-point is commanded again.
+
+        Returns:
+            q^ [rad, rad, m], float64, (3,) or (n, 3).
+        """
+        return self._task.pd_setpoint(obs, action, saturation_margin)
 
     # -- API ---------------------------------------------------------------------------
     def reset(self, *, seed: int | None = None, options: dict | None = None):
         super().reset(seed=checks.seed("seed", seed))
-        info = self.task.reset_robot(0, self.np_random, options)
+        info = self._task.reset_robot(0, self.np_random, options)
         self._needs_reset = False
         self._trace = [self._tip()]
         if self.render_mode == "human":
             self.render()
-        return self.task.observation(0, self.np_random), info
+        return self._task.observation(0, self.np_random), info
 
     def step(self, action):
         if self._needs_reset:
@@ -236,7 +298,7 @@ class ScaraEnv(gym.Env):
         if not (type(action) is np.ndarray and action.shape == (3,) and action.dtype.char in "fd"
                 and action.flags.c_contiguous):
             action = check_actions(action, (3,))  # converts, or raises naming the problem
-        task = self.task
+        task = self._task
         task.step_robot(0, action)
         info = task.info(0)
         terminated = info["is_success"] or (info["collision"] and task.collision_mode == "terminate")
@@ -245,7 +307,7 @@ class ScaraEnv(gym.Env):
             self._trace.append(self._tip())
         if self.render_mode == "human":
             self.render()
-        return self.task.observation(0, self.np_random), float(self._reward[0]), terminated, False, info
+        return self._task.observation(0, self.np_random), float(self._reward[0]), terminated, False, info
 
     # -- helpers -----------------------------------------------------------------------
     def _tip(self) -> tuple[float, float]:
@@ -282,9 +344,9 @@ class ScaraEnv(gym.Env):
 
     def __setstate__(self, state):
         self.__dict__.update(state)
-        self._robot = self.task.robots[0]
-        self._outcome = self.task.outcomes[0]
-        self._reward = self.task.outcomes["reward"]
+        self._robot = self._task.robots[0]
+        self._outcome = self._task.outcomes[0]
+        self._reward = self._task.outcomes["reward"]
 
 
 RENDER_MODE_DOC = ('"rgb_array" (headless) or "human" (a window; without a display the frames are drawn '

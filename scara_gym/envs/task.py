@@ -7,9 +7,9 @@ environment is a ``ScaraTask`` with one robot, the vector environment one with N
 are thin Gymnasium adapters over it. No gymnasium import here: spaces are the adapters'.
 
 Public layouts: ``OBSERVATION_NAMES`` (one name per observation entry, the card's
-table) and ``OBSERVATION_LAYOUT`` (field name -> slice or index), and the set-point <->
-action mapping of the "pd" mode (:meth:`ScaraTask.setpoint_to_action`,
-:meth:`ScaraTask.action_to_setpoint`).
+table) and ``OBSERVATION_LAYOUT`` (field name -> slice or index). The task object itself is
+internal (an env's ``_task``): agents and wrappers use the envs' state surface
+(:mod:`scara_gym.envs.surface`), e.g. ``env.unwrapped.setpoint_to_action``.
 """
 
 from __future__ import annotations
@@ -227,8 +227,9 @@ class ScaraTask:
     """Scara-C11 for ``num_robots`` robots, configured by an :class:`~scara_gym.envs.config.EnvConfig`
     (``config``, default ``EnvConfig()``) with keyword overrides of its fields.
 
-    The environments' engine, not a public API of its own: the envs declare what agents and
-    wrappers may use (snapshots, the set-point maps, the targets, per-robot observations).
+    The environments' engine, not a public API of its own (an env holds it as ``_task``): the
+    envs declare what agents and wrappers may use (snapshots, the set-point maps, the targets,
+    per-robot observations) in :mod:`scara_gym.envs.surface`.
     Its compiled records are ``step_config`` (the step's configuration), ``constants`` (the
     task's constants), and per robot ``robots``, ``robot_params``, ``outcomes`` and ``obs``."""
 
@@ -261,8 +262,6 @@ class ScaraTask:
         self.exact_switches = checks.flag("exact_switches", exact_switches)
         self.tolerance_weights = checks.tolerance_weights(tolerance_weights, R.STATE_GROUPS)
         num_robots = checks.integer("num_robots", num_robots, 1, MAX_ROBOTS)
-        self.arguments = {**config.as_dict(), "num_robots": num_robots}
-        """the configuration as keyword arguments of ScaraTask (kept for the shield's model)"""
         self.default_target = self.check_joints(target if target is not None else self.params.task.target, "target")
         self.default_start = self.check_joints(start if start is not None else self.params.task.start, "start")
         self.start_region = _start_region(randomize_start)

@@ -27,6 +27,7 @@ from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
 from scara_gym.envs.config import EnvConfig, make_config
+from scara_gym.envs.surface import RobotsSurface
 from scara_gym.envs.task import RESET_OPTIONS, ScaraTask, check_actions, vector_seeds
 from scara_gym.model import checks
 
@@ -55,7 +56,7 @@ def check_reset_mask(options: dict, num_envs: int, autoreset_mode: AutoresetMode
     return mask.copy()
 
 
-class ScaraVectorEnv(VectorEnv):
+class ScaraVectorEnv(RobotsSurface, VectorEnv):
     """N copies of the env of a registered id (the same arguments as ScaraEnv: ``config`` and
     keyword overrides of its fields), stepped in parallel.
 
@@ -71,6 +72,11 @@ class ScaraVectorEnv(VectorEnv):
     drawn path over the robots. The sim-to-real options (observation_noise, action_delay,
     action_rate_limit) act per robot as in the single environment: robot i's noise comes from
     its own generator, and ``info["applied_action"]`` holds every robot's applied action.
+
+    The state surface per robot (``snapshot``/``restore``, ``reset_robot``,
+    ``noise_free_observation``, ``targets``, ``episode_params``, the set-point maps) and the
+    configuration (``config``, ``params``, ``control_mode`` ...) are documented in
+    :mod:`scara_gym.envs.surface`.
     """
 
     metadata = {"autoreset_mode": AutoresetMode.NEXT_STEP, "render_modes": []}
@@ -97,13 +103,12 @@ class ScaraVectorEnv(VectorEnv):
         if kwargs.pop("render_mode", None) is not None:
             raise ValueError("the vector environment does not render; use render_mode=None "
                              "(render a single env instead)")
-        self.task = task = ScaraTask(make_config(config, kwargs, self.config_defaults), num_robots=int(num_envs))
+        self._task = task = ScaraTask(make_config(config, kwargs, self.config_defaults), num_robots=int(num_envs))
         self.num_envs = int(num_envs)
         self.max_episode_steps = int(max_episode_steps)
         self.metadata = {**type(self).metadata, "autoreset_mode": autoreset_mode}
         self.autoreset_mode = autoreset_mode
         self.render_mode = None
-        self.control_dt = task.control_dt
         self.single_action_space = spaces.Box(-1.0, 1.0, shape=(3,), dtype=np.float32)
         self.single_observation_space = spaces.Box(task.obs_low, task.obs_high, dtype=np.float32)
         self.action_space = batch_space(self.single_action_space, self.num_envs)
@@ -112,10 +117,10 @@ class ScaraVectorEnv(VectorEnv):
         self._prev_done = np.zeros(self.num_envs, dtype=bool)
         self._started = False
 
-    @property
-    def targets(self) -> np.ndarray:
-        """The robots' targets q^ [rad, rad, m], shape (num_envs, 3) (a copy)."""
-        return self.task.robot_params["target"].copy()
+    def _robot_restarted(self, robot: int) -> None:
+        self._prev_done[robot] = False  # in a running episode: no autoreset, no "ended" error
+        if self._started:
+            self._obs[robot] = self._task.obs[robot]  # what a masked reset keeps for it
 
     # -- episodes ----------------------------------------------------------------------
     def reset(self, *, seed: int | list[int | None] | None = None, options: dict | None = None):
@@ -127,10 +132,10 @@ class ScaraVectorEnv(VectorEnv):
         robots = range(self.num_envs) if mask is None else np.flatnonzero(mask)
         # every reset robot's start, target and parameters are checked before any robot changes
         rngs = {i: self._rngs[i] if seeds[i] is None else seeding.np_random(seeds[i])[0] for i in robots}
-        plans = {i: self.task.episode_start(rng, options) for i, rng in rngs.items()}
+        plans = {i: self._task.episode_start(rng, options) for i, rng in rngs.items()}
         for i, plan in plans.items():
             self._rngs[i] = rngs[i]
-            self.task.begin_episode(i, plan)
+            self._task.begin_episode(i, plan)
         self._prev_done[list(robots)] = False
         self._started = True
         info = {"target": self.targets}
@@ -139,18 +144,18 @@ class ScaraVectorEnv(VectorEnv):
             info["params"] = {path: np.array([plans[i].varied.get(path, np.nan) if i in plans else np.nan
                                               for i in range(self.num_envs)]) for path in varied}
         if mask is None:
-            self._obs = self.task.observations(self._rngs)
+            self._obs = self._task.observations(self._rngs)
         else:  # the others keep their last observation: no noise is drawn for them
             info["_target"] = mask
             for i in robots:
-                self._obs[i] = self.task.observation(i, self._rngs[i])
+                self._obs[i] = self._task.observation(i, self._rngs[i])
         return self._agent_view(self._obs.copy()), info
 
     # -- stepping ----------------------------------------------------------------------
     def step(self, actions):
         if not self._started:
             raise RuntimeError("call reset() before step()")
-        task = self.task
+        task = self._task
         a = check_actions(actions, (self.num_envs, 3))
         if self.autoreset_mode == AutoresetMode.DISABLED and self._prev_done.any():
             raise RuntimeError(f"robots {np.flatnonzero(self._prev_done).tolist()} have ended their episodes: reset "
@@ -189,13 +194,13 @@ class ScaraVectorEnv(VectorEnv):
         for i in indices:
             rng = copy.deepcopy(self._rngs[i])
             try:
-                drawn.append((i, rng, self.task.episode_start(rng, None)))
+                drawn.append((i, rng, self._task.episode_start(rng, None)))
             except (RuntimeError, ValueError) as error:
                 raise RuntimeError(f"autoreset: robot {i}'s next episode cannot start ({error}); no robot of this "
                                    "step was reset") from error
         for i, rng, plan in drawn:
             self._rngs[i] = rng
-            self.task.begin_episode(i, plan)
+            self._task.begin_episode(i, plan)
 
     # -- hooks of the goal-conditioned vector env (scara_gym.envs.goal) -----------------
     def _judge(self, reward: np.ndarray, terminated: np.ndarray, info: dict, resetting: np.ndarray):

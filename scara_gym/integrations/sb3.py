@@ -80,15 +80,14 @@ class SB3VecEnv(VecEnv):
         self.venv.close()
 
     def get_attr(self, attr_name: str, indices=None) -> list[Any]:
-        owner = self.venv if hasattr(self.venv, attr_name) else self.venv.task
-        return [getattr(owner, attr_name) for _ in self._get_indices(indices)]
+        return [getattr(self.venv, attr_name) for _ in self._get_indices(indices)]
 
     def set_attr(self, attr_name: str, value: Any, indices=None) -> None:
         raise AttributeError("the robots of a native vector environment share one configuration; "
                              "build a new SB3VecEnv instead of setting attributes")
 
     def env_method(self, method_name: str, *method_args, indices=None, **method_kwargs) -> list[Any]:
-        method = getattr(self.venv.task, method_name)
+        method = getattr(self.venv, method_name)
         return [method(*method_args, **method_kwargs) for _ in self._get_indices(indices)]
 
     def env_is_wrapped(self, wrapper_class, indices=None) -> list[bool]:

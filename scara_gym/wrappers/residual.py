@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from scara_gym.envs.task import OBSERVATION_LAYOUT, ScaraTask
+from scara_gym.envs.task import OBSERVATION_LAYOUT
 
 Q, TARGET_ERROR = OBSERVATION_LAYOUT["q"], OBSERVATION_LAYOUT["target_error"]
 
@@ -23,19 +23,20 @@ class ResidualSetpoint:
     The set-point is target + residual_scale * deadzone(r): the agent acts around the target.
 
     Args:
-        task: the ScaraTask of the environment the actions are for.
+        env: the environment the actions are for (its unwrapped ScaraEnv or vector env; a
+            wrapped one is unwrapped): its set-point maps (``setpoint_action``, ``pd_setpoint``).
         residual_scale (sequence of 3 floats): the largest offset from the target per axis
             [rad, rad, m], each >= 0.
         deadzone: the share of r's range, in [0, 1), mapped to the target itself.
     """
 
-    def __init__(self, task: ScaraTask, residual_scale, deadzone: float = 0.0) -> None:
+    def __init__(self, env, residual_scale, deadzone: float = 0.0) -> None:
         if not 0.0 <= deadzone < 1.0:
             raise ValueError(f"residual_deadzone must be in [0, 1), got {deadzone!r}")
         scale = np.asarray(residual_scale, dtype=float)
         if scale.shape != (3,) or not np.all(np.isfinite(scale)) or np.any(scale < 0):
             raise ValueError(f"residual_scale must be 3 finite numbers >= 0 [rad, rad, m], got {residual_scale!r}")
-        self.task = task
+        self.env = env.unwrapped
         self.scale = scale
         self.deadzone = float(deadzone)
 
@@ -45,7 +46,7 @@ class ResidualSetpoint:
         target = obs[:, Q] + obs[:, TARGET_ERROR]
         shaped = np.sign(r) * np.maximum(np.abs(r) - self.deadzone, 0.0) / (1.0 - self.deadzone)
         setpoint = target + self.scale * shaped
-        return self.task.setpoint_action(obs, setpoint)
+        return self.env.setpoint_action(obs, setpoint)
 
     def agent_actions(self, obs: np.ndarray, env_actions: np.ndarray, saturation_margin: float = 0.2) -> np.ndarray:
         """Outputs r in [-1, 1] that this map turns into (about) the given environment actions on
@@ -56,10 +57,10 @@ class ResidualSetpoint:
         obs = np.atleast_2d(np.asarray(obs, dtype=float))
         env_actions = np.atleast_2d(np.asarray(env_actions, dtype=float))
         target = obs[:, Q] + obs[:, TARGET_ERROR]
-        if self.task.control_mode == "pd":
-            setpoint = self.task.action_to_setpoint(env_actions)
+        if self.env.control_mode == "pd":
+            setpoint = self.env.action_to_setpoint(env_actions)
         else:
-            setpoint = self.task.pd_setpoint(obs, env_actions, saturation_margin)
+            setpoint = self.env.pd_setpoint(obs, env_actions, saturation_margin)
         with np.errstate(divide="ignore", invalid="ignore"):
             shaped = np.where(self.scale > 0, (setpoint - target) / self.scale, 0.0)
         r = np.sign(shaped) * (self.deadzone + (1.0 - self.deadzone) * np.abs(shaped))

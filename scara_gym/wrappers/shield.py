@@ -77,6 +77,7 @@ import numpy as np
 
 from scara_gym.envs.randomization import ParameterRanges
 from scara_gym.envs.task import OBSERVATION_LAYOUT, EpisodePlan, ScaraTask
+from scara_gym.envs.vector import ScaraVectorEnv
 from scara_gym.model import checks
 from scara_gym.model.dynamics import tip_position
 from scara_gym.model.params import DEFAULT_PARAMS, ScaraParams, resolve_params
@@ -185,12 +186,13 @@ class Shield:
     """``policy``'s action where every model certifies that the backup can still bring the arm
     to rest clear of the wall after it, else the committed backup's (module docstring).
     ``interventions`` counts the steps of the current episode where the backup acted. ``env``
-    gives the models' task arguments and, for ``__call__``, the robot; ``filter`` shields any
-    task's robot with the same arguments (a vector environment's in training: shielded RL), with
-    ``policy`` None.
+    gives the models' configuration (``env.config``) and, for ``__call__``, the robot; ``filter``
+    shields any env's robot with the same configuration (a vector environment's in training:
+    shielded RL), with ``policy`` None. The env is read through its state surface only
+    (``snapshot``, ``noise_free_observation``, ``setpoint_action``).
 
     Args:
-        env (gymnasium.Env): the environment whose robot is shielded (its task's arguments make the models).
+        env (gymnasium.Env): the environment whose robot is shielded (its configuration makes the models).
         policy (callable | None): a callable obs -> action, or None for ``filter`` alone.
         params: the nominal model's parameters; None: the episode's own (an exact model).
         horizon: the most backup steps a rollout may take to come to rest.
@@ -224,7 +226,7 @@ class Shield:
         self.zone_margin = self.wall_margin + self.dynamics_margin
         """how far the robust shield's zone reaches beyond every wall's critical zone [m]"""
         self.policy = policy
-        arguments = self.env.task.arguments
+        arguments = self.env.config.as_dict()
         nominal = arguments["params"] if params is None else params
         ranges = None
         if robust is not None:
@@ -363,24 +365,40 @@ class Shield:
                 return True
         return False
 
-    def filter(self, task, index: int, action: np.ndarray) -> tuple[np.ndarray, bool]:
-        """(the action robot ``index`` of ``task`` gets, whether the backup replaced ``action``):
-        the single environment's robot 0, or one robot of a vector environment's task. The
-        committed backup is forgotten where a new episode starts (its first step)."""
+    def filter(self, env, index: int, action: np.ndarray) -> tuple[np.ndarray, bool]:
+        """The shielded action of one robot.
+
+        Args:
+            env: a single environment (``index`` 0) or a CPU vector environment (robot ``index``),
+                with this shield's configuration; read through its state surface (``snapshot``,
+                ``noise_free_observation``, ``setpoint_action``).
+            index: the robot's index.
+            action: the action the policy chose for it.
+
+        Returns:
+            (the action the robot gets, whether the backup replaced ``action``). The committed
+            backup is forgotten where a new episode starts (its first step).
+        """
         action = np.asarray(action, dtype=np.float64)
-        snapshot = task.snapshot(index)
+        env = env.unwrapped
+        vector = isinstance(env, ScaraVectorEnv)
+        if not vector and index != 0:
+            raise ValueError(f"Shield.filter: a single environment has robot 0 only, got index {index!r}")
+        snapshot = env.snapshot(index) if vector else env.snapshot()
         if snapshot["episode_steps"] == 0 or index not in self._committed:
             self._committed[index] = self.backup_setpoint(snapshot)  # at rest at the start
         if self.certify(snapshot, action):
             self._committed[index] = self.backup_setpoint(snapshot)
             return action, False
         setpoint = self._committed[index]
-        return task.setpoint_action(task.obs[index].astype(np.float64), setpoint, index), True
+        if vector:
+            return env.setpoint_action(env.noise_free_observation(index).astype(np.float64), setpoint, index), True
+        return env.setpoint_action(env.noise_free_observation().astype(np.float64), setpoint), True
 
     def __call__(self, obs: np.ndarray) -> np.ndarray:
         if self.policy is None:
             raise ValueError("Shield: no policy to shield (policy=None is for filter(), shielded training); give "
                              "Shield(env, policy) a policy to call it")
-        action, replaced = self.filter(self.env.task, 0, self.policy(obs))
+        action, replaced = self.filter(self.env, 0, self.policy(obs))
         self.interventions += replaced
         return action

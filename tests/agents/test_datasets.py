@@ -122,7 +122,7 @@ def test_residual_cloning_targets_map_back_to_the_recorded_actions(minari_folder
     from scara_gym.wrappers import ResidualSetpoint
 
     dataset = datasets.build("scara/c11/mixed-v0", episodes=2, expert=EXPERT, scores=(0.0, 1.0), verbose=False)
-    mapping = ResidualSetpoint(datasets.environment(dataset).unwrapped.task, (2.5, 2.5, 0.05), 0.5)
+    mapping = ResidualSetpoint(datasets.environment(dataset).unwrapped, (2.5, 2.5, 0.05), 0.5)
     for number, episode in enumerate(dataset.iterate_episodes()):
         obs, actions = episode.observations[:-1].astype(np.float32), episode.actions
         r = residual_outputs(mapping, obs, actions)

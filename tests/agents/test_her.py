@@ -21,7 +21,7 @@ def _filled(buffer_class, steps=400, **kwargs):
     buffer = buffer_class(2_000, env.observation_space, env.action_space, env=env, n_sampled_goal=4,
                           goal_selection_strategy="future", copy_info_dict=True, **kwargs)
     obs = env.reset()
-    task = env.envs[0].unwrapped.task
+    task = env.envs[0].unwrapped
     for _ in range(steps):
         action = np.array([task.setpoint_to_action(goal) for goal in obs["desired_goal"]])
         next_obs, reward, done, infos = env.step(action.astype(np.float32))

@@ -42,7 +42,7 @@ def test_infeasible_or_unsupported_configurations_are_refused_by_name():
 
 def test_in_pd_mode_it_commands_the_set_point_that_gives_its_voltages_and_reaches_the_target(tmp_path):
     voltage, pd = voltage_env(), gym.make(ENV_ID, control_mode="pd")
-    task = pd.unwrapped.task
+    task = pd.unwrapped
     for seed in (0, 5):
         obs, _ = voltage.reset(seed=seed, options={"start": [0.1 * seed, -0.05 * seed, 0.02]})
         obs_pd, _ = pd.reset(seed=seed, options={"start": [0.1 * seed, -0.05 * seed, 0.02]})

@@ -58,7 +58,7 @@ def test_reference_snapshots_are_the_replayed_path():
     # from the last snapshot, the last planned action reaches the target at the replay's instant
     env = gym.make(LATEST_ENV_ID, control_mode="voltage")  # the id the snapshots were taken on
     env.reset(seed=0)
-    env.unwrapped.task.restore(0, snapshots[-1])
+    env.unwrapped.restore(snapshots[-1])
     _, _, terminated, _, info = env.step(actions[len(snapshots)])
     assert terminated and info["is_success"] and info["reach_time"] == pytest.approx(replayed["reach_time"], abs=1e-12)
 

@@ -20,14 +20,14 @@ class WallDriver:
     name = "wall driver"
 
     def __init__(self, env, seed: int) -> None:
-        self.task, self.rng = env.unwrapped.task, np.random.default_rng(seed)
+        self.env, self.rng = env.unwrapped, np.random.default_rng(seed)
 
     def reset(self) -> None:
         pass
 
     def __call__(self, obs):
         setpoint = np.array([obs[0] + obs[9], obs[1] + obs[10], 0.0]) + self.rng.normal(0.0, 0.3, 3)
-        return self.task.setpoint_action(obs.astype(float), setpoint)
+        return self.env.setpoint_action(obs.astype(float), setpoint)
 
 
 class WallHugger:
@@ -38,19 +38,19 @@ class WallHugger:
     name = "wall hugger"
 
     def __init__(self, env, seed: int, depth: float = 0.01) -> None:
-        self.task, self.depth = env.unwrapped.task, depth
+        self.env, self.depth = env.unwrapped, depth
 
     def reset(self) -> None:
         pass
 
     def __call__(self, obs):
-        arm = self.task.params.arm
+        arm = self.env.params.arm
         q2 = float(obs[1])
         wall_x = float(obs[12] - obs[14])
         elbow = complex(arm.link1_length + arm.link2_length * np.cos(q2), arm.link2_length * np.sin(q2))
         reach, offset = abs(elbow), np.angle(elbow)
         q1 = np.arccos(np.clip((wall_x - self.depth) / reach, -1.0, 1.0)) - offset  # the tip's x = wall - depth
-        return self.task.setpoint_action(obs.astype(float), np.array([q1, q2, 0.0]))
+        return self.env.setpoint_action(obs.astype(float), np.array([q1, q2, 0.0]))
 
 
 class HeldRandom:
@@ -207,18 +207,17 @@ def test_a_rollout_the_shield_certified_ends_at_rest_and_stays_clear():
     held for 2 s more neither touches the wall nor comes within half the wall margin of it."""
     env = gym.make("Scara-C11-v1", randomize_target=True)
     shield = Shield(env, None, params=None)
-    task = env.unwrapped.task
+    unwrapped = env.unwrapped
     for seed in range(3):
         env.reset(seed=seed)
         adversary = WallDriver(env, seed)
         for _ in range(60):  # along an adversary's shielded path
-            action, _ = shield.filter(task, 0, adversary(task.obs[0].copy()))
-            env.step(action)
-            if task.outcomes[0]["reached"]:
+            action, _ = shield.filter(unwrapped, 0, adversary(unwrapped.noise_free_observation()))
+            if env.step(action)[4]["is_success"]:
                 break
-            snapshot = task.snapshot(0)
-            if not shield.certify(snapshot, np.zeros(3) if env.unwrapped.control_mode == "voltage" else
-                                  task.setpoint_to_action(snapshot["x"][:3])):
+            snapshot = unwrapped.snapshot()
+            if not shield.certify(snapshot, np.zeros(3) if unwrapped.control_mode == "voltage" else
+                                  unwrapped.setpoint_to_action(snapshot["x"][:3])):
                 continue
             model = shield.model_task
             setpoint = shield.backup_setpoint(snapshot)
@@ -319,8 +318,8 @@ def test_a_rollout_ends_only_after_the_actuator_line_has_applied_the_policys_act
     env = gym.make("Scara-C11-v1", action_delay=3)
     env.reset(seed=0)
     shield = Shield(env, None, params=None)
-    task = env.unwrapped.task
-    assert shield.certify(task.snapshot(0), task.setpoint_to_action(task.snapshot(0)["x"][:3]))
+    unwrapped = env.unwrapped
+    assert shield.certify(unwrapped.snapshot(), unwrapped.setpoint_to_action(unwrapped.snapshot()["x"][:3]))
     assert shield.model_task.outcomes["episode_steps"][0] >= 3 + REST_STEPS
     with pytest.raises(ValueError, match="climb_margin .* must be at least wall_margin"):
         Shield(env, None, wall_margin=0.02, climb_margin=0.01)
@@ -331,7 +330,7 @@ def test_the_exact_model_takes_each_episodes_own_parameters():
     shield = Shield(env, PDPolicy(env), params=None)
     for seed in (0, 1):
         env.reset(seed=seed)
-        shield(env.unwrapped.task.obs[0].copy())
+        shield(env.unwrapped.noise_free_observation())
         assert shield.model_task.episode_params[0] == env.unwrapped.episode_params != scara_gym.DEFAULT_PARAMS
 
 

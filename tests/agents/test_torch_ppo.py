@@ -108,7 +108,7 @@ def test_reward_weights_reach_the_env_and_bad_ones_are_named():
     assert parse_reward_weights("") == {}
     assert parse_reward_weights("energy=0.05, time=20") == {"energy": 0.05, "time": 20.0}
     envs = make_env(Config(num_envs=2, reward_weights={"energy": 0.05, "time": 20.0}))
-    weights = envs.unwrapped.task.reward_weights
+    weights = envs.unwrapped.reward_weights
     assert (weights.energy, weights.time, weights.collision) == (0.05, 20.0, 50.0)  # the rest: the env's
     with pytest.raises(ValueError, match="reward_weights: expected name=number"):
         parse_reward_weights("energy")
@@ -119,11 +119,11 @@ def test_reward_weights_reach_the_env_and_bad_ones_are_named():
 def test_the_protocols_training_distribution_reaches_the_env():
     from scara_gym.benchmark.protocol import SENSOR_NOISE, START_OFFSETS
 
-    task = make_env(Config(num_envs=2, randomize_start=True, sensor_noise=2.0)).unwrapped.task
+    task = make_env(Config(num_envs=2, randomize_start=True, sensor_noise=2.0)).unwrapped._task
     assert task.start_region is START_OFFSETS
     assert task.sim_to_real.sensor_std.tolist() == [2 * SENSOR_NOISE["q"]] * 3 + [2 * SENSOR_NOISE["rate"]] * 3 + \
         [2 * SENSOR_NOISE["current"]] * 3
-    plain = make_env(Config(num_envs=2)).unwrapped.task
+    plain = make_env(Config(num_envs=2)).unwrapped._task
     assert plain.start_region is None and not plain.sim_to_real.noisy
 
 
@@ -184,14 +184,13 @@ def test_the_residual_set_point_option_acts_around_the_target_in_training_and_ev
     policy = TorchPPOPolicy(env, out)
     with torch.no_grad():
         mean = policy.agent.heads(policy.agent.normalize(torch.as_tensor(obs)[None]))[0][0].clamp(-1, 1).numpy()
-    mapping = ResidualSetpoint(env.unwrapped.task, [2.5, 2.5, 0.05], 0.5)
+    mapping = ResidualSetpoint(env.unwrapped, [2.5, 2.5, 0.05], 0.5)
     assert np.array_equal(policy(obs), mapping(obs, mean.astype(np.float64))[0])
     # inside the dead zone the set-point is the target itself, read from the observation
-    task = env.unwrapped.task
     inside = mapping(obs, np.array([0.3, -0.49, 0.0]))[0]
-    np.testing.assert_allclose(task.setpoint_center + task.setpoint_half * inside, info["target"], atol=1e-6)
+    np.testing.assert_allclose(env.unwrapped.action_to_setpoint(inside), info["target"], atol=1e-6)
     with pytest.raises(ValueError, match="residual_scale must be 3 finite numbers"):
-        residual_mapping(Config(residual_scale=(1.0, 2.0)), task)
+        residual_mapping(Config(residual_scale=(1.0, 2.0)), env.unwrapped)
     with pytest.raises(ValueError, match="residual_scale: expected 3 numbers"):
         Config.from_dict({"residual_scale": "a,b,c"})
     legacy = Config.from_dict({"residual_scale": "2.5,2.5,0.05", "reward_weights": "time=20", "init_from": ""})
@@ -207,9 +206,9 @@ def test_demo_resets_start_episodes_on_the_reference_path_and_training_uses_them
     moved = resets(obs.copy(), range(8))
     times = {round(s["t"], 6): s for s in resets.snapshots}
     for i in range(8):  # each robot stands where the reference stood at some step, and sees it
-        state = envs.unwrapped.task.snapshot(i)
+        state = envs.unwrapped.snapshot(i)
         assert np.array_equal(state["x"], times[round(state["t"], 6)]["x"])
-        assert np.array_equal(moved[i], envs.unwrapped.task.obs[i])
+        assert np.array_equal(moved[i], envs.unwrapped.noise_free_observation(i))
     assert moved[:, -1].max() < 1.0  # time_left: no robot at the start
     none = DemoResets(envs, Config(num_envs=8, demo_resets=0.0))
     assert np.array_equal(none(obs.copy(), range(8)), obs)
@@ -227,8 +226,7 @@ def test_target_replay_gives_new_episodes_the_failed_targets_until_they_succeed(
     config = Config(num_envs=4, randomize_target=True, target_replay=1.0)
     envs = make_env(config)
     obs, _ = envs.reset(seed=0)
-    task = envs.unwrapped.task
-    targets = lambda: task.robot_params["target"].copy()  # noqa: E731
+    targets = lambda: envs.unwrapped.targets  # noqa: E731
     replay = TargetReplay(envs, config)
     first = targets()
     no, yes, rng = np.zeros(4, dtype=bool), np.ones(4, dtype=bool), np.random.default_rng(5)
@@ -236,12 +234,12 @@ def test_target_replay_gives_new_episodes_the_failed_targets_until_they_succeed(
 
     def ended(rows, success, collided):  # what the autoreset does before the replay: fresh targets
         for i in rows:
-            task.reset_robot(i, rng)
+            envs.unwrapped.reset_robot(i, rng=rng)
         return replay(obs.copy(), rows, success, collided)
 
     moved = ended([0], no, no)  # robot 0 stopped short on first[0]: its next episode is on it again
     assert np.array_equal(targets()[0], first[0]) and len(replay.failed) == 1
-    assert np.array_equal(moved[0], task.obs[0].astype(np.float32))  # it sees its new episode
+    assert np.array_equal(moved[0], envs.unwrapped.noise_free_observation(0))  # it sees its new episode
     assert np.array_equal(moved[1:], obs[1:])
     ended([0], yes, no)  # ... and succeeds there: the target leaves, the fresh draw stays
     assert replay.failed == [] and not np.array_equal(targets()[0], first[0])
@@ -306,7 +304,7 @@ def test_the_residual_maps_inverse_replays_the_optimal_reference():
 
     observations, actions = reference_demonstration(wall_margin=0.008)
     env = gym.make("Scara-C11-v1", control_mode="voltage")
-    mapping = ResidualSetpoint(env.unwrapped.task, [2.5, 2.5, 0.05], 0.5)
+    mapping = ResidualSetpoint(env.unwrapped, [2.5, 2.5, 0.05], 0.5)
     outputs = mapping.agent_actions(observations, actions)
     assert outputs.shape == actions.shape and np.all(np.abs(outputs) <= 1.0)
     obs, _ = env.reset(seed=0)
@@ -320,7 +318,7 @@ def test_the_residual_maps_inverse_replays_the_optimal_reference():
     assert abs(info["reach_time"] - replayed["reach_time"]) < 1e-6 and replayed["reach_time"] < 1.23
     # "pd" mode: the inverse of the map's own outputs outside the dead zone is the output itself
     pd_env = gym.make("Scara-C11-v1")
-    pd_mapping = ResidualSetpoint(pd_env.unwrapped.task, [2.5, 2.5, 0.05], 0.5)
+    pd_mapping = ResidualSetpoint(pd_env.unwrapped, [2.5, 2.5, 0.05], 0.5)
     obs, _ = pd_env.reset(seed=0)
     r = np.array([[0.7, -0.6, 0.7], [-0.9, 0.55, -1.0]])  # set-points inside the "pd" range
     np.testing.assert_allclose(pd_mapping.agent_actions(np.stack([obs, obs]), pd_mapping(np.stack([obs, obs]), r)),
@@ -333,7 +331,7 @@ def test_demo_cloning_starts_the_policy_on_the_reference_and_checks_its_argument
                     num_envs=2, num_steps=8, num_minibatches=1, update_epochs=1, total_timesteps=32,
                     out=str(tmp_path / "run"))
     envs = make_env(config)
-    cloning = DemoCloning(envs, config, residual_mapping(config, envs.unwrapped.task))
+    cloning = DemoCloning(envs, config, residual_mapping(config, envs.unwrapped))
     assert cloning.weight(1) == 1.0 and cloning.weight(3) == 0.25
     agent = Agent(18, 3, 64, 10.0)
     with torch.no_grad():
@@ -348,4 +346,4 @@ def test_demo_cloning_starts_the_policy_on_the_reference_and_checks_its_argument
                        (dict(randomize_target=True), "randomize_target")):
         with pytest.raises(ValueError, match=match):  # the Config refuses what it can tell alone
             wrong = Config(**{**dataclasses.asdict(config), **bad})
-            DemoCloning(make_env(wrong), wrong, residual_mapping(wrong, make_env(wrong).unwrapped.task))
+            DemoCloning(make_env(wrong), wrong, residual_mapping(wrong, make_env(wrong).unwrapped))

@@ -128,7 +128,7 @@ def test_a_start_offset_moves_the_run_under_test_only(monkeypatch):
     reset = ScaraEnv.reset
 
     def recording_reset(self, *, seed=None, options=None):
-        starts.append((self.task.rtol, np.array(options["start"])))
+        starts.append((self._task.rtol, np.array(options["start"])))
         return reset(self, seed=seed, options=options)
 
     monkeypatch.setattr(ScaraEnv, "reset", recording_reset)

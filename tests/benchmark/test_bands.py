@@ -20,13 +20,13 @@ class CommandTheTarget:
     """PD's set-point, the target (it alone collides with the wall)."""
 
     def __init__(self, env):
-        self.task = env.unwrapped.task
+        self.env = env.unwrapped
 
     def reset(self):
         pass
 
     def __call__(self, obs):
-        return self.task.setpoint_action(obs, obs[:3] + obs[TARGET_ERROR])
+        return self.env.setpoint_action(obs, obs[:3] + obs[TARGET_ERROR])
 
 
 def shielded_pd(env):

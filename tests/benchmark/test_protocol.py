@@ -18,7 +18,7 @@ class Hold:
     name = "climb first"
 
     def __init__(self, env):
-        self.task = env.unwrapped.task
+        self.env = env.unwrapped
 
     def reset(self):
         self.start = None
@@ -29,7 +29,7 @@ class Hold:
             self.start = obs[:3].copy()
         if obs[15] < 0.01:  # height_margin
             target = np.array([self.start[0], self.start[1], target[2]])
-        return self.task.setpoint_action(obs, target)
+        return self.env.setpoint_action(obs, target)
 
 
 def test_every_condition_has_its_own_seeds_apart_from_tuning_and_training():
@@ -68,13 +68,13 @@ def test_conditions_build_the_environment_they_describe():
     targets = protocol.CONDITIONS["random-targets"].make_env()
     target = targets.reset(seed=3)[1]["target"]
     assert np.all(target >= TARGET_LOW) and np.all(target <= TARGET_HIGH)
-    delayed = protocol.CONDITIONS["delay-1"].make_env().unwrapped.task
+    delayed = protocol.CONDITIONS["delay-1"].make_env().unwrapped._task
     assert delayed.sim_to_real.action_delay == 1
-    noisy = protocol.CONDITIONS["sensor-noise"].make_env().unwrapped.task
+    noisy = protocol.CONDITIONS["sensor-noise"].make_env().unwrapped._task
     assert noisy.sim_to_real.sensor_std.tolist() == [1e-3] * 3 + [0.01] * 3 + [0.02] * 3
     assert protocol.shift_condition("axes.*.resistance", 1.2).params == protocol.CONDITIONS["resistance+20"].params
-    assert protocol.noise_condition(5).make_env().unwrapped.task.sim_to_real.sensor_std.tolist() == \
-        protocol.CONDITIONS["sensor-noise-x5"].make_env().unwrapped.task.sim_to_real.sensor_std.tolist()
+    assert protocol.noise_condition(5).make_env().unwrapped._task.sim_to_real.sensor_std.tolist() == \
+        protocol.CONDITIONS["sensor-noise-x5"].make_env().unwrapped._task.sim_to_real.sensor_std.tolist()
     with pytest.raises(ValueError, match="unknown condition 'c12'; the protocol's conditions are"):
         protocol.get_condition("c12")
     with pytest.raises(ValueError, match="sets \\['randomize_target'\\] itself"):
@@ -102,7 +102,7 @@ def test_evaluate_gives_each_episode_its_drawn_start():
     env = condition.make_env()
     for seed, trace in zip(condition.seeds(3), starts["traces"]):
         _, info = env.reset(seed=seed, options=condition.options(seed))
-        tip = env.unwrapped.task.obs[0][12:14]
+        tip = env.unwrapped.noise_free_observation()[12:14]
         assert np.allclose(trace[0, 1:3], tip)  # the trace starts at the drawn start's tip
 
 

@@ -150,7 +150,7 @@ def test_parameters_set_for_one_episode_go_back_to_the_nominal_ones(autoreset_mo
             assert_same(c, g, f"step {k} {label}")
         ends += int(cpu_out[2].sum())
     assert ends > 3  # later episodes ran (on the nominal parameters, as the CPU env's did)
-    assert np.array_equal(cpu.unwrapped.task.robot_params["resistance"],
+    assert np.array_equal(cpu.unwrapped._task.robot_params["resistance"],
                           gpu.unwrapped.d_params.copy_to_host()["resistance"])
 
 
@@ -190,7 +190,7 @@ def test_the_cuda_goal_env_is_the_cpu_goal_env_bit_for_bit(name, reward_type, au
     rng = np.random.default_rng(1)
     successes = collisions = 0
     for k in range(steps):  # the set-point at the goal, kicked now and then
-        goals = np.array([cpu.unwrapped.task.setpoint_to_action(t) for t in cpu.unwrapped.targets])
+        goals = np.array([cpu.unwrapped.setpoint_to_action(t) for t in cpu.unwrapped.targets])
         actions = goals + rng.normal(0.0, 0.3, (n, 3)) * (rng.random((n, 1)) < 0.2)
         cpu_out, gpu_out = cpu.step(actions), gpu.step(torch.from_numpy(actions))
         for label, c, g in zip(("obs", "reward", "terminated", "truncated", "info"), cpu_out, gpu_out):
@@ -273,7 +273,7 @@ def test_random_starts_with_a_delay_in_pd_mode_are_refused_on_the_device():
 
 
 def test_the_cuda_env_defaults_to_the_latest_integration():
-    assert {name: getattr(ScaraCudaVectorEnv(num_envs=2).task, name) for name in scara_gym.LATEST_INTEGRATION} \
+    assert {name: getattr(ScaraCudaVectorEnv(num_envs=2)._task, name) for name in scara_gym.LATEST_INTEGRATION} \
         == scara_gym.LATEST_INTEGRATION
 
 

@@ -219,7 +219,7 @@ def test_pickling_round_trips_mid_episode():
 
 @pytest.mark.parametrize("control_mode", ["pd", "voltage"])
 def test_a_restored_snapshot_goes_on_as_the_episode_it_was_taken_from(control_mode):
-    """ScaraTask.snapshot / restore: a robot put in another episode's state at step k takes
+    """The vector env's snapshot / restore: a robot put in another episode's state at step k takes
     the same steps from there, bit for bit, up to the same truncation step of the vector env
     (whose time limit reads the task's step count; a single env's TimeLimit wrapper counts its own)."""
     rng = np.random.default_rng(4)
@@ -229,10 +229,10 @@ def test_a_restored_snapshot_goes_on_as_the_episode_it_was_taken_from(control_mo
     source.reset(seed=0)
     for a in actions[:37]:
         source.step(a)
-    snapshot = source.unwrapped.task.snapshot(0)
+    snapshot = source.unwrapped.snapshot(0)
     copy.reset(seed=1)
-    copy.unwrapped.task.restore(0, snapshot)
-    assert np.array_equal(copy.unwrapped.task.obs[0], source.unwrapped.task.obs[0])
+    copy.unwrapped.restore(0, snapshot)
+    assert np.array_equal(copy.unwrapped.noise_free_observation(0), source.unwrapped.noise_free_observation(0))
     for k, a in enumerate(actions[37:], start=38):  # noqa: B007  (the step it ends on is kept)
         left, right = source.step(a), copy.step(a)
         assert all(np.array_equal(x, y) for x, y in zip(left[:4], right[:4]))
@@ -243,14 +243,14 @@ def test_a_restored_snapshot_goes_on_as_the_episode_it_was_taken_from(control_mo
         if left[2][0] or left[3][0]:
             break
     assert k == 300 and left[3][0]  # the time limit counted from the source's start
-    task = gym.make("Scara-C11-v1", control_mode=control_mode).unwrapped.task
-    task.reset_robot(0, np.random.default_rng(0), {"target": [1.0, 1.0, 0.2]})
+    single = gym.make("Scara-C11-v1", control_mode=control_mode).unwrapped
+    single.reset(seed=0, options={"target": [1.0, 1.0, 0.2]})
     with pytest.raises(ValueError, match="another target or other parameters"):
-        task.restore(0, snapshot)
+        single.restore(snapshot)
     delayed = gym.make("Scara-C11-v1", control_mode=control_mode, action_delay=1)
     delayed.reset(seed=0)
     with pytest.raises(ValueError, match="action_delay"):
-        delayed.unwrapped.task.restore(0, snapshot)
+        delayed.unwrapped.restore(snapshot)
 
 
 @pytest.mark.parametrize("control_mode", ["pd", "voltage"])
@@ -264,10 +264,10 @@ def test_a_snapshot_carries_the_actuator_line_and_restores_the_continuation(cont
     source.reset(seed=0)
     for action in actions[:20]:
         source.step(action)
-    snapshot = source.unwrapped.task.snapshot(0)
+    snapshot = source.unwrapped.snapshot()
     assert snapshot["pending"].shape == (2, 3) and snapshot["applied"].shape == (3,)
     copy.reset(seed=0)
-    copy.unwrapped.task.restore(0, snapshot)
+    copy.unwrapped.restore(snapshot)
     for action in actions[20:]:
         left, right = source.step(action), copy.step(action)
         np.testing.assert_array_equal(left[0], right[0])
@@ -277,7 +277,7 @@ def test_a_snapshot_carries_the_actuator_line_and_restores_the_continuation(cont
     other = gym.make("Scara-C11-v1", control_mode=control_mode, action_delay=1)
     other.reset(seed=0)
     with pytest.raises(ValueError, match="action_delay 1\\) needs a snapshot with its state"):
-        other.unwrapped.task.restore(0, snapshot)
+        other.unwrapped.restore(snapshot)
 
 
 def test_reward_terms_sum_to_the_reward_and_observations_stay_in_the_space():
@@ -469,7 +469,7 @@ def test_the_card_matches_the_spaces_and_arguments(env_id):
 def test_an_integration_that_cannot_go_on_names_its_cause():
     env = ScaraEnv(control_mode="voltage")
     env.reset(seed=0)
-    env.task.step_config["max_steps"] = 3  # a step budget far below what one control step needs
+    env._task.step_config["max_steps"] = 3  # a step budget far below what one control step needs
     with pytest.raises(SimulationError, match=r"max_steps = 3 step attempts used up"):
         env.step(np.ones(3))
 
@@ -481,8 +481,8 @@ def test_each_registered_id_fixes_its_integration_arguments(env_id):
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", DeprecationWarning)  # v0 is out of date, on purpose
         env = gym.make(env_id).unwrapped
-        vector_task = gym.make_vec(env_id, num_envs=2, vectorization_mode="vector_entry_point").task
-    for task_ in (env.task, vector_task):
+        vector_task = gym.make_vec(env_id, num_envs=2, vectorization_mode="vector_entry_point")._task
+    for task_ in (env._task, vector_task):
         assert {name: getattr(task_, name) for name in fixed} == fixed
         expected = ParameterRanges.from_argument(randomized, task_.params)
         assert task_.randomization == expected

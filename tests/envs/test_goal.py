@@ -31,7 +31,7 @@ def transitions(reward_type: str, count: int = 1000):
         for _ in range(300):
             action = straight if rng.random() < 0.95 else rng.uniform(-1, 1, 3)
             obs, reward, terminated, truncated, info = env.step(action.astype(np.float32))
-            reached = bool(env.unwrapped.task.outcomes["reached"][0])
+            reached = bool(env.unwrapped._task.outcomes["reached"][0])
             rows.append((obs["achieved_goal"], obs["desired_goal"], info, reward, terminated, truncated, reached))
             if terminated or truncated:
                 break

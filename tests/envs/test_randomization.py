@@ -81,10 +81,10 @@ def test_the_drawn_parameters_are_the_physics_of_the_episode():
     assert info["params"]["arm.load_mass"] == 1.7 and env.episode_params.arm.load_mass == 1.7
     plain = ScaraEnv()
     plain.reset(seed=0, options={"params": {"axes.0.current_limit": 5.0}})
-    assert plain.task.robot_params["current_limit"][0, 0] == 5.0
+    assert plain._task.robot_params["current_limit"][0, 0] == 5.0
     _, info = plain.reset(seed=0)
     assert "params" not in info and plain.episode_params is plain.params
-    assert plain.task.robot_params[0] == plain.task.nominal_record
+    assert plain._task.robot_params[0] == plain._task.nominal_record
 
 
 def test_an_override_in_options_wins_over_the_draw():
@@ -146,7 +146,7 @@ def test_pd_actions_of_a_batch_use_each_robots_parameters():
     gains = info["params"]["axes.0.p_gain"]
     assert len(set(gains.tolist())) == 4
     setpoint = np.array([0.01, 0.0, 0.0])  # small: the PD law stays unsaturated on axis 0
-    batch = venv.unwrapped.task.pd_action(obs, setpoint)
+    batch = venv.unwrapped.pd_action(obs, setpoint)
     for i in range(4):
         single = ScaraEnv(control_mode="voltage", params={"axes.0.p_gain": gains[i]})
         expected = single.pd_action(obs[i], setpoint)
@@ -198,10 +198,10 @@ def test_bad_ranges_are_named(value, error, match):
 def test_bad_overrides_are_named_and_change_nothing(options, error, match):
     env = ScaraEnv(randomize_params="all")
     obs, info = env.reset(seed=2)
-    before = (env.task.robot_params.copy(), env.state, env.episode_params)
+    before = (env._task.robot_params.copy(), env.state, env.episode_params)
     with pytest.raises(error, match=match):
         env.reset(seed=3, options=options)
-    assert env.task.robot_params == before[0]
+    assert env._task.robot_params == before[0]
     np.testing.assert_array_equal(env.state, before[1])
     assert env.episode_params is before[2]
 
@@ -212,7 +212,7 @@ def test_without_randomization_nothing_is_drawn():
     for seed in range(5):
         _, info = env.reset(seed=seed)
         rng, _ = seeding.np_random(seed)
-        expected = draw_target(rng, env.task.default_start, env.params, obstacle=True)
+        expected = draw_target(rng, env._task.default_start, env.params, obstacle=True)
         np.testing.assert_array_equal(info["target"], expected)
         assert "params" not in info
 

@@ -24,11 +24,10 @@ def actions_towards_target(env, steps, seed=0):
 def rollout(env, actions, seed=0):
     """(observations, true observations, states, rewards, ends, infos) of one episode."""
     obs, _ = env.reset(seed=seed)
-    task = env.unwrapped.task
-    out = {"obs": [obs], "true": [task.obs[0].copy()], "state": [], "reward": [], "end": [], "info": []}
+    out = {"obs": [obs], "true": [env.unwrapped.noise_free_observation()], "state": [], "reward": [], "end": [], "info": []}
     for action in actions:
         obs, reward, terminated, truncated, info = env.step(action)
-        out["obs"].append(obs), out["true"].append(task.obs[0].copy())
+        out["obs"].append(obs), out["true"].append(env.unwrapped.noise_free_observation())
         out["state"].append(env.unwrapped.state), out["reward"].append(reward)
         out["end"].append((terminated, truncated)), out["info"].append(info)
         if terminated or truncated:
@@ -207,7 +206,7 @@ def test_bad_options_are_named(kwargs, error, match):
 def test_a_bad_action_changes_nothing_in_the_delay_line():
     env = ScaraEnv(action_delay=2)
     env.reset(seed=0)
-    before = env.task.actuator.pending.copy()
+    before = env._task.actuator.pending.copy()
     with pytest.raises(ValueError, match="action must be 3 finite numbers"):
         env.step(np.array([np.nan, 0.0, 0.0], dtype=np.float32))
-    np.testing.assert_array_equal(env.task.actuator.pending, before)
+    np.testing.assert_array_equal(env._task.actuator.pending, before)

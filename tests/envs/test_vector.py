@@ -59,7 +59,7 @@ def test_each_sub_environment_is_the_single_environment(kwargs):
 def test_same_step_autoreset_returns_the_final_observation_in_info():
     venv = ScaraVectorEnv(num_envs=3, autoreset_mode="SameStep", control_mode="pd")
     venv.reset(seed=0)
-    action = np.tile(venv.task.setpoint_to_action([2.0, 2.0, 0.3]), (3, 1))
+    action = np.tile(venv.setpoint_to_action([2.0, 2.0, 0.3]), (3, 1))
     for _ in range(100):  # plain PD hits the wall at about 0.36 s
         obs, _, term, trunc, info = venv.step(action)
         if term.any():
@@ -176,7 +176,7 @@ def test_an_autoreset_that_cannot_start_a_robot_resets_none_and_names_it(mode, m
     venv.step(actions)
     if mode == "NextStep":
         venv.step(actions)  # every robot's episode ends here; the next step resets them
-    task, real = venv.task, venv.task.episode_start
+    task, real = venv._task, venv._task.episode_start
     calls = []
 
     def second_fails(rng, options):
@@ -278,7 +278,7 @@ def test_gymnasium_vector_wrappers_in_every_autoreset_mode(autoreset_mode):
             DtypeObservation(inner, np.float64)
     wrapped = RecordEpisodeStatistics(NormalizeReward(inner))
     obs, _ = wrapped.reset(seed=0)
-    action = np.tile(venv.unwrapped.task.setpoint_to_action([2.0, 2.0, 0.3]), (3, 1))  # plain PD: the wall
+    action = np.tile(venv.unwrapped.setpoint_to_action([2.0, 2.0, 0.3]), (3, 1))  # plain PD: the wall
     ended = 0
     for _ in range(80):
         obs, reward, terminated, truncated, info = wrapped.step(action)

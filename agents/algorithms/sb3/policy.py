@@ -29,11 +29,11 @@ def algorithm_class(algo: str):
     return {"ppo": PPO, "sac": SAC, "td3": TD3}[algo]
 
 
-def residual_mapping(task, hyper: dict) -> ResidualSetpoint | None:
+def residual_mapping(env, hyper: dict) -> ResidualSetpoint | None:
     """The residual set-point a hyperparameter block acts through (its residual_scale), or None."""
     if "residual_scale" not in hyper:
         return None
-    return ResidualSetpoint(task, hyper["residual_scale"], hyper.get("residual_deadzone", 0.0))
+    return ResidualSetpoint(env, hyper["residual_scale"], hyper.get("residual_deadzone", 0.0))
 
 
 def shipped_models() -> list[str]:
@@ -92,7 +92,7 @@ class SB3Policy:
     def _attach(self, model, normalizer, hyper: dict) -> None:
         self.model = model
         self.normalizer = normalizer if normalizer is not None and normalizer.norm_obs else None
-        self.mapping = residual_mapping(self.env.task, hyper)
+        self.mapping = residual_mapping(self.env, hyper)
 
     def reset(self) -> None:
         pass

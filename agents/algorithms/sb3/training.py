@@ -99,7 +99,7 @@ def make_envs(env_id: str, env_kwargs: dict, hyper: dict, seed: int, normalizer:
     train_env.seed(seed)
     eval_env = DummyVecEnv([lambda: Monitor(gym.make(env_id, **env_kwargs))])
     eval_env.seed(10_000 + seed)
-    mapping = residual_mapping(train_env.venv.task, hyper) if env_id not in GOAL_ENV_IDS else None
+    mapping = residual_mapping(train_env.venv, hyper) if env_id not in GOAL_ENV_IDS else None
     if mapping is not None:
         train_env, eval_env = ResidualVecEnv(train_env, mapping), ResidualVecEnv(eval_env, mapping)
     norm = _normalize_kwargs(hyper)

@@ -99,7 +99,6 @@ def _reference_replay(env_id: str, start, target, params: ScaraParams, wall_marg
         raise LookupError(f"no shipped minimum-time solution from {list(start)} to {list(target)} with wall margin "
                           f"{wall_margin} m (scara-agents optimal --wall-margin M --write FILE makes one)")
     env, policy = replaying(np.array(data["held"]["actions"]), env_id, start, target, params)
-    task = env.unwrapped.task
     obs, _ = env.reset(seed=0)
     policy.reset()
     observations, actions, snapshots = [], [], []
@@ -110,7 +109,7 @@ def _reference_replay(env_id: str, start, target, params: ScaraParams, wall_marg
         obs, _, terminated, truncated, info = env.step(action)
         if terminated or truncated:
             break
-        snapshots.append(task.snapshot(0))
+        snapshots.append(env.unwrapped.snapshot())
     env.close()
     if not info["is_success"] or info["collisions"]:
         raise RuntimeError(f"the optimal reference from {list(start)} to {list(target)} does not reach the "
@@ -123,7 +122,7 @@ def reference_snapshots(env_id: str = ENV_ID, start=(0.0, 0.0, 0.0), target=(2.0
                         wall_margin: float = CollocationConfig.wall_margin) -> list[dict]:
     """The states the optimal reference (its shipped solution with this wall margin) passes
     through in the environment, one after each of its control steps before the last (the one
-    that reaches the target), as ``ScaraTask.snapshot`` gives them: starts for reference state
+    that reaches the target), as ``ScaraEnv.snapshot`` gives them: starts for reference state
     initialization (the torch PPO's ``demo_resets`` hook). Raises if the replay does not reach
     the target."""
     return _reference_replay(env_id, start, target, params, wall_margin)[2]
