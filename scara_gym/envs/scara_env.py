@@ -253,7 +253,7 @@ class ScaraEnv(TaskSurface, gym.Env):
         """
         return self._task.setpoint_action(obs, setpoint)
 
-    def pd_action(self, obs, setpoint) -> np.ndarray:
+    def pd_action(self, obs: np.ndarray, setpoint: np.ndarray) -> np.ndarray:
         """The "voltage"-mode action that applies the C11 PD law to a set-point on an observation:
         U / limit, with the widened limit where the observation says critical (what "pd" mode
         does, evaluated once per control step), with the episode's parameters.

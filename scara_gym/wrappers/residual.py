@@ -10,6 +10,7 @@ can still hold an axis back by up to residual_scale.
 
 from __future__ import annotations
 
+import gymnasium as gym
 import numpy as np
 
 from scara_gym.envs.task import OBSERVATION_LAYOUT
@@ -30,7 +31,7 @@ class ResidualSetpoint:
         deadzone: the share of r's range, in [0, 1), mapped to the target itself.
     """
 
-    def __init__(self, env, residual_scale, deadzone: float = 0.0) -> None:
+    def __init__(self, env: gym.Env, residual_scale, deadzone: float = 0.0) -> None:
         if not 0.0 <= deadzone < 1.0:
             raise ValueError(f"residual_deadzone must be in [0, 1), got {deadzone!r}")
         scale = np.asarray(residual_scale, dtype=float)

@@ -9,8 +9,8 @@ import pytest
 from agents.cli import build_parser, run
 from scara_gym import LATEST_ENV_ID
 
-SUBCOMMANDS = ("evaluate", "train", "torch-ppo", "campaign", "compare", "curves", "sweep", "select", "optimal",
-               "bench", "datasets")
+SUBCOMMANDS = ("evaluate", "train", "torch-ppo", "campaign", "compare", "curves", "learning-curve", "search", "sweep",
+               "select", "optimal", "bench", "datasets")
 
 
 def test_the_parser_has_exactly_the_documented_subcommands():

@@ -153,6 +153,16 @@ MISTAKES = [
     (["sweep", "--run", "torch-ppo", "--grid", "learning_rate=nan"], "learning_rate must be"),
     (["sweep", "--run", "ppo", "--grid", "n_steps=0"], "n_steps must be an integer >= 1"),
     (["sweep", "--run", "ppo", "--grid", "learning_rate=../.."], "not a plain name and value"),
+    # learning-curve
+    (["learning-curve", "ppo"], "ppo is not a learning-curve run; those are ppo-c11-starts"),
+    (["learning-curve", "nope"], "no registered run 'nope'"),
+    (["learning-curve", "ppo-c11-starts", "--episodes", "0"], "--episodes must be"),
+    (["learning-curve", "ppo-c11-starts", "--runs", "/nonexistent"], "no finished run of ppo-c11-starts under"),
+    # search
+    (["search", "torch-ppo"], "torch-ppo is not a registered SB3 run"),
+    (["search", "ppo", "--trials", "0"], "--trials must be"),
+    (["search", "ppo", "--grace-steps", "10", "--max-steps", "5"], "--grace-steps must be at most --max-steps"),
+    (["search", "ppo", "--env-id", "Scara-C11-v9"], "--env-id: invalid choice"),
     # select
     (["select", "/nonexistent", "--out", "x"], "holds no config.json"),
     (["select"], "the following arguments are required"),
