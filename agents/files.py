@@ -44,6 +44,7 @@ from pathlib import Path
 import numpy as np
 
 from scara_gym.extras import require
+from scara_gym.model.checks import UserError
 
 
 def write_atomic(path: str | Path, data: bytes | str) -> Path:
@@ -96,8 +97,8 @@ def load_torch(path: str | Path, map_location="cpu", data: bytes | None = None):
         source = path if data is None else io.BytesIO(data)
         return torch.load(source, map_location=map_location, weights_only=True)
     except (pickle.UnpicklingError, RuntimeError, EOFError, OSError) as error:
-        raise ValueError(f"{path}: not a weights file this package wrote, refused without running it "
-                         f"({type(error).__name__}: {str(error).splitlines()[0] if str(error) else ''})") from None
+        raise UserError(f"{path}: not a weights file this package wrote, refused without running it "
+                        f"({type(error).__name__}: {str(error).splitlines()[0] if str(error) else ''})") from None
 
 
 def save_arrays(path: str | Path, arrays: dict[str, np.ndarray]) -> Path:
@@ -115,8 +116,8 @@ def load_arrays(path: str | Path) -> dict[str, np.ndarray]:
         with np.load(path, allow_pickle=False) as data:
             return {k: data[k] for k in data.files}
     except (ValueError, OSError, EOFError, zipfile.BadZipFile) as error:
-        raise ValueError(f"{path}: not an array file this package wrote, refused without running it "
-                         f"({type(error).__name__}: {error})") from None
+        raise UserError(f"{path}: not an array file this package wrote, refused without running it "
+                        f"({type(error).__name__}: {error})") from None
 
 
 class RunLocked(RuntimeError):
@@ -204,7 +205,7 @@ def write_digests(folder: str | Path, names: Iterable[str]) -> Path:
     folder = Path(folder)
     lines = [f"{file_digest(folder / name)}  {name}\n" for name in sorted(names) if (folder / name).is_file()]
     if not lines:
-        raise ValueError(f"{folder}: none of {sorted(names)} to list in {DIGESTS}; an empty manifest is never written")
+        raise UserError(f"{folder}: none of {sorted(names)} to list in {DIGESTS}; an empty manifest is never written")
     return write_atomic(folder / DIGESTS, "".join(lines))
 
 
@@ -216,11 +217,11 @@ def read_once(path: str | Path) -> bytes:
         descriptor = os.open(path, os.O_RDONLY | os.O_NOFOLLOW)
     except OSError as error:
         if path.is_symlink():
-            raise ValueError(f"{path}: a symlink, refused (a folder's files are its own)") from None
-        raise ValueError(f"{path}: cannot be read ({error.strerror})") from None
+            raise UserError(f"{path}: a symlink, refused (a folder's files are its own)") from None
+        raise UserError(f"{path}: cannot be read ({error.strerror})") from None
     with os.fdopen(descriptor, "rb") as file:
         if not stat.S_ISREG(os.fstat(file.fileno()).st_mode):
-            raise ValueError(f"{path}: not a regular file, refused")
+            raise UserError(f"{path}: not a regular file, refused")
         return file.read()
 
 
@@ -246,17 +247,17 @@ def read_manifest(folder: str | Path) -> tuple[str, dict[str, str]] | None:
     try:
         text = data.decode()
     except UnicodeDecodeError:
-        raise ValueError(f"{path}: not a manifest (not text), refused") from None
+        raise UserError(f"{path}: not a manifest (not text), refused") from None
     for number, line in enumerate(text.splitlines(), 1):
         digest, separator, name = line.partition("  ")
         if not separator or not _DIGEST.fullmatch(digest) or not _listed_name(name):
-            raise ValueError(f"{path}, line {number}: not 'SHA-256  NAME' with NAME inside the folder, refused")
+            raise UserError(f"{path}, line {number}: not 'SHA-256  NAME' with NAME inside the folder, refused")
         if name in listed:
-            raise ValueError(f"{path}: lists {name} twice, refused")
+            raise UserError(f"{path}: lists {name} twice, refused")
         listed[name] = digest
     if not listed:
-        raise ValueError(f"{path} lists no file: an empty manifest trusts nothing (a manifest lists every file the "
-                         "folder may load), refused")
+        raise UserError(f"{path} lists no file: an empty manifest trusts nothing (a manifest lists every file the "
+                        "folder may load), refused")
     return hashlib.sha256(data).hexdigest(), listed
 
 
@@ -291,9 +292,9 @@ def json_record(path: str | Path, data: bytes | str | None = None) -> dict:
     try:
         value = json.loads(Path(path).read_bytes() if data is None else data)
     except (json.JSONDecodeError, UnicodeDecodeError) as error:
-        raise ValueError(f"{path}: not JSON ({error})") from None
+        raise UserError(f"{path}: not JSON ({error})") from None
     if not isinstance(value, dict):
-        raise ValueError(f"{path}: holds a JSON {type(value).__name__}, not the object (the record) expected")
+        raise UserError(f"{path}: holds a JSON {type(value).__name__}, not the object (the record) expected")
     return value
 
 
@@ -311,17 +312,17 @@ def verify_digests(folder: str | Path, wanted: Iterable[str] = ()) -> Checked:
     digest, listed = manifest
     for name in wanted:
         if name not in listed and ((folder / name).exists() or (folder / name).is_symlink()):
-            raise ValueError(f"{folder / name}: not listed in {folder / DIGESTS}, which lists every file the folder "
-                             "may load: refused unread")
+            raise UserError(f"{folder / name}: not listed in {folder / DIGESTS}, which lists every file the folder "
+                            "may load: refused unread")
     files = {}
     for name, expected in listed.items():
         path = folder / name
         if not path.exists() and not path.is_symlink():
-            raise ValueError(f"{path}: listed in {folder / DIGESTS} but missing")
+            raise UserError(f"{path}: listed in {folder / DIGESTS} but missing")
         data = read_once(path)
         if hashlib.sha256(data).hexdigest() != expected:
-            raise ValueError(f"{path}: its SHA-256 is not the one {folder / DIGESTS} records; the file was changed or "
-                             "corrupted, and is refused")
+            raise UserError(f"{path}: its SHA-256 is not the one {folder / DIGESTS} records; the file was changed or "
+                            "corrupted, and is refused")
         files[name] = data
     return Checked(folder, files, digest)
 
@@ -339,7 +340,7 @@ PUBLISHED_MANIFESTS_ENV = "SCARA_GYM_PUBLISHED_MANIFESTS"
 leave the package's list as it is)"""
 
 
-class UntrustedFolder(ValueError):
+class UntrustedFolder(UserError):
     """A folder whose pickle files neither this machine's runs nor the package vouch for."""
 
 
@@ -381,8 +382,8 @@ def _checked_store(descriptor: int, store: Path) -> None:
         problem = f"writable by group or others (mode {stat.S_IMODE(status.st_mode):o}; chmod go-w it)"
     else:
         return
-    raise ValueError(f"{store}: the trust store is {problem}, so others could make any folder trusted; refused "
-                     f"(or set {TRUST_STORE_ENV} to a file of your own)")
+    raise UserError(f"{store}: the trust store is {problem}, so others could make any folder trusted; refused "
+                    f"(or set {TRUST_STORE_ENV} to a file of your own)")
 
 
 def _open_store(store: Path, flags: int) -> int | None:
@@ -394,9 +395,9 @@ def _open_store(store: Path, flags: int) -> int | None:
         return None
     except OSError as error:
         if store.is_symlink():
-            raise ValueError(f"{store}: the trust store is a symlink, so others could make any folder trusted; "
-                             f"refused (or set {TRUST_STORE_ENV} to a file of your own)") from None
-        raise ValueError(f"{store}: the trust store cannot be opened ({error.strerror})") from None
+            raise UserError(f"{store}: the trust store is a symlink, so others could make any folder trusted; "
+                            f"refused (or set {TRUST_STORE_ENV} to a file of your own)") from None
+        raise UserError(f"{store}: the trust store cannot be opened ({error.strerror})") from None
     try:
         _checked_store(descriptor, store)
     except BaseException:
@@ -426,7 +427,7 @@ def record_trusted(folder: str | Path) -> None:
     (:func:`read_manifest`): it is never recorded."""
     manifest = read_manifest(folder)
     if manifest is None:
-        raise ValueError(f"{folder}: no {DIGESTS} to record as trusted")
+        raise UserError(f"{folder}: no {DIGESTS} to record as trusted")
     digest = manifest[0]
     store = trust_store()
     text = _store_text()
@@ -448,7 +449,7 @@ def publish_manifest(folder: str | Path) -> None:
     written atomically. A manifest that lists nothing is refused."""
     manifest = read_manifest(folder)
     if manifest is None:
-        raise ValueError(f"{folder}: no {DIGESTS} to publish")
+        raise UserError(f"{folder}: no {DIGESTS} to publish")
     listed = published_manifests()
     known = _digests_in(listed)
     if manifest[0] not in known:
@@ -521,8 +522,8 @@ def recorded_run(folder: str | Path) -> dict:
         record = json_record(folder / RUN_RECORD)
     elif (folder / "config.json").is_file():
         config = json_record(folder / "config.json")
-        torch_run = config.get("algo") == "torch-ppo"
-        record = {"trainer": "torch-ppo" if torch_run else "sb3", "algo": config.get("algo", "ppo"),
+        torch_run = config.get("algo") in ("torch-ppo", "bc")  # the torch trainers write their algo as their name
+        record = {"trainer": config["algo"] if torch_run else "sb3", "algo": config.get("algo", "ppo"),
                   "env_id": config.get("env_id"), "seed": config.get("seed"),
                   "control_mode": config.get("control_mode") if torch_run
                   else config.get("env_kwargs", {}).get("control_mode")}
@@ -530,8 +531,8 @@ def recorded_run(folder: str | Path) -> dict:
         return {}
     written = record.get("run_format", 1)
     if not isinstance(written, int) or written > RUN_FORMAT:
-        raise ValueError(f"out: {folder} was written by a newer version of scara_gym (run format {written}; this "
-                         f"version reads {RUN_FORMAT} and older): train with that version, or give another folder")
+        raise UserError(f"out: {folder} was written by a newer version of scara_gym (run format {written}; this "
+                        f"version reads {RUN_FORMAT} and older): train with that version, or give another folder")
     return record
 
 
@@ -567,12 +568,12 @@ def claim_run_folder(folder: str | Path, run: dict, resume: bool, overwrite: boo
     elif held:
         differences = _differences(recorded_run(folder), record)
         if differences:
-            raise ValueError(f"out: {folder} holds another run ({'; '.join(differences)}); give another "
-                             "folder, or overwrite=True (--overwrite) to replace it")
+            raise UserError(f"out: {folder} holds another run ({'; '.join(differences)}); give another "
+                            "folder, or overwrite=True (--overwrite) to replace it")
         if not resume:
-            raise ValueError(f"out: {folder} holds this run already; resume=True (--resume) continues it (a finished "
-                             "one: nothing to do), overwrite=True (--overwrite) trains it again from scratch, or give "
-                             "another folder")
+            raise UserError(f"out: {folder} holds this run already; resume=True (--resume) continues it (a finished "
+                            "one: nothing to do), overwrite=True (--overwrite) trains it again from scratch, or give "
+                            "another folder")
         write_json(folder / RUN_RECORD, record)
         return True
     write_json(folder / RUN_RECORD, record)

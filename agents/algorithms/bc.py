@@ -44,6 +44,7 @@ from agents.files import (
     write_json,
 )
 from scara_gym.envs.task import OBSERVATION_LAYOUT
+from scara_gym.model.checks import UserError
 from scara_gym.wrappers import ResidualSetpoint
 
 ON_TARGET = 1e-5
@@ -153,11 +154,11 @@ class BCPolicy:
         record = checked.json("config.json")
         if record.get("algo") != "bc":
             other = " (a torch PPO run: torchppo:DIR)" if record.get("algo") == "torch-ppo" else ""
-            raise ValueError(f"{run_dir}: not a behaviour-cloning run (its config.json says algo "
-                             f"{record.get('algo')!r}){other}")
+            raise UserError(f"{run_dir}: not a behaviour-cloning run (its config.json says algo "
+                            f"{record.get('algo')!r}){other}")
         if env.unwrapped.control_mode != "pd":
-            raise ValueError(f"{run_dir} clones 'pd' mode actions, the environment is in "
-                             f"{env.unwrapped.control_mode!r} mode")
+            raise UserError(f"{run_dir} clones 'pd' mode actions, the environment is in "
+                            f"{env.unwrapped.control_mode!r} mode")
         saved = load_torch(run_dir / "model.pt", data=checked.bytes("model.pt"))
         self.actor = Actor(saved["obs_size"], saved["action_size"], saved["hidden_size"], saved["layers"])
         self.actor.load_state_dict(saved["state_dict"])

@@ -48,6 +48,7 @@ from agents.files import (
 )
 from scara_gym.benchmark.protocol import SENSOR_NOISE
 from scara_gym.envs.cuda_vector import load_backend
+from scara_gym.model.checks import UserError
 from scara_gym.wrappers import ResidualSetpoint, Shield
 
 LOG_SQRT_2PI = 0.5 * float(np.log(2 * np.pi))
@@ -273,7 +274,7 @@ def train(config: Config, resume: bool = False, hooks: list[Hook] | None = None,
         try:
             load_backend()
         except (ImportError, RuntimeError) as error:
-            raise ValueError(str(error)) from None
+            raise UserError(str(error)) from None
     with exclusive(out):
         claim_run_folder(out, run_record(config), resume, overwrite)
         return _train(config, resume, hooks)
@@ -294,7 +295,7 @@ def _train(config: Config, resume: bool, hooks: list[Hook] | None) -> dict:
     device = getattr(envs.unwrapped, "device", torch.device(config.device))
     mapping = residual_mapping(config, envs.unwrapped.task)
     if mapping is not None and device.type != "cpu":
-        raise ValueError("residual_scale: the residual set-point maps numpy observations; train on device='cpu'")
+        raise UserError("residual_scale: the residual set-point maps numpy observations; train on device='cpu'")
     hooks = hooks_for(config, envs, mapping) if hooks is None else list(hooks)
     learner = _start(config, envs, device, hooks, resume)
     write_json(out / "config.json", config.to_dict())
@@ -555,8 +556,8 @@ def load_weights(agent: Agent, run_dir: Path) -> None:
     mine = (agent.obs_rms.mean.shape[0], agent.actor_logstd.shape[0], agent.weights[0].shape[-1])
     theirs = (saved["obs_size"], saved["action_size"], saved["hidden_size"])
     if mine != theirs:
-        raise ValueError(f"init_from: {str(run_dir)!r} has (observation, action, hidden) sizes {theirs}, "
-                         f"this run {mine}")
+        raise UserError(f"init_from: {str(run_dir)!r} has (observation, action, hidden) sizes {theirs}, "
+                        f"this run {mine}")
     agent.load_state_dict(saved["state_dict"])  # copies in place: the parameters stay views of one tensor
 
 
@@ -571,8 +572,8 @@ class TorchPPOPolicy:
         run_config = Config.from_dict(checked.json("config.json"))
         unwrapped = env.unwrapped
         if run_config.control_mode != unwrapped.control_mode:
-            raise ValueError(f"{run_dir} was trained in {run_config.control_mode!r} mode, "
-                             f"the environment is in {unwrapped.control_mode!r} mode")
+            raise UserError(f"{run_dir} was trained in {run_config.control_mode!r} mode, "
+                            f"the environment is in {unwrapped.control_mode!r} mode")
         saved = load_torch(run_dir / "model.pt", data=checked.bytes("model.pt"))
         self.agent = Agent(saved["obs_size"], saved["action_size"], saved["hidden_size"], saved["clip_obs"])
         self.agent.load_state_dict(saved["state_dict"])

@@ -50,6 +50,7 @@ from pathlib import Path
 import gymnasium as gym
 import numpy as np
 
+from agents.algorithms.loaders import load_policy
 from agents.algorithms.offline_data import (  # noqa: F401  (the datasets' safe loading, used here and re-exported)
     DATASET_FILES,
     check_episode,
@@ -58,7 +59,6 @@ from agents.algorithms.offline_data import (  # noqa: F401  (the datasets' safe 
     environment,
     load,
 )
-from agents.experiments.evaluation import make_policy
 from agents.files import write_digests, write_json
 from scara_gym import __version__
 from scara_gym.benchmark.episodes import run_episodes
@@ -66,6 +66,7 @@ from scara_gym.benchmark.protocol import evaluate, tuning
 from scara_gym.envs.task import REWARD_TERMS
 from scara_gym.extras import require
 from scara_gym.model import checks
+from scara_gym.model.checks import UserError
 
 CONTROL_MODE = "pd"
 TASKS = {
@@ -99,7 +100,7 @@ EXPERT_CANDIDATES = {
         f"{prefix}torchppo:{_learned.format(runs='{runs}', name='torch-ppo-residual-random-replay', seed=s)}"
         for prefix in ("", "shield:") for s in range(5)],
 }
-"""task -> the policy specs (agents.experiments.evaluation.make_policy) its expert is picked from:
+"""task -> the policy specs (agents.algorithms.loaders.load_policy) its expert is picked from:
 PD behind the shield, and the published learned runs that do best on the task (alone, and behind
 the shield where they collide); ``{runs}`` is the runs folder"""
 MEDIUM_FIELDS = {
@@ -136,7 +137,7 @@ DATASETS = {s.name: s for s in (DatasetSpec(task, tier, 1000, k) for k, (task, t
 def get_dataset(name: str) -> DatasetSpec:
     """The dataset ``name`` (ValueError listing the names otherwise)."""
     if name not in DATASETS:
-        raise ValueError(f"unknown dataset {name!r}; the datasets are {sorted(DATASETS)}")
+        raise UserError(f"unknown dataset {name!r}; the datasets are {sorted(DATASETS)}")
     return DATASETS[name]
 
 
@@ -234,7 +235,7 @@ def pick_expert(task: str, runs: Path = RUNS, episodes: int = TUNING_EPISODES) -
     figures = []
     for spec in EXPERT_CANDIDATES[task]:
         spec = spec.format(runs=runs)
-        result = evaluate(condition, lambda env, s=spec: make_policy(s, env), CONTROL_MODE)
+        result = evaluate(condition, lambda env, s=spec: load_policy(s, env), CONTROL_MODE)
         reach = result["reach_time"][result["success"]]
         figures.append({"policy": spec, "success_rate": float(np.mean(result["success"])),
                         "collision_rate": float(np.mean(result["collisions"])),
@@ -311,7 +312,7 @@ def reference_scores(task: str, expert: str) -> tuple[float, float]:
                        REFERENCE_SEED + list(TASKS).index(task) * 10**6 + REFERENCE_EPISODES))
     env = make_env(task)
     low = run_episodes(env, RandomActions(env, seeds[0]), seeds)["return"].mean()
-    high = run_episodes(env, make_policy(expert, env), seeds)["return"].mean()
+    high = run_episodes(env, load_policy(expert, env), seeds)["return"].mean()
     return float(low), float(high)
 
 
@@ -343,15 +344,15 @@ def build(name: str, episodes: int | None = None, out: Path | None = None, runs:
         if spec.tier == "random":
             policy = RandomActions(env, spec.seed)
         elif spec.tier == "expert":
-            policy = make_policy(expert["policy"], env)
+            policy = load_policy(expert["policy"], env)
         elif spec.tier == "mixed":
-            policy = Alternating(make_policy(expert["policy"], env), RandomActions(env, spec.seed))
+            policy = Alternating(load_policy(expert["policy"], env), RandomActions(env, spec.seed))
         else:  # medium, medium-replay: one training run
             folder, rollouts = medium or train_medium(spec.task, Path(work or scratch) / f"{spec.task}-medium")
             record["medium_run"] = {**{k: list(v) if isinstance(v, tuple) else v
                                        for k, v in MEDIUM_FIELDS[spec.task].items()},
                                     "total_timesteps": MEDIUM_STEPS, "seed": 0}
-            policy = make_policy(f"torchppo:{folder}", env)
+            policy = load_policy(f"torchppo:{folder}", env)
         record["behaviour"] = "torch-ppo rollouts (stochastic)" if spec.tier == "medium-replay" else policy.name
         buffers = (rollouts[:count] if episodes is not None else rollouts) if spec.tier == "medium-replay" \
             else episode_buffers(env, policy, seeds)
@@ -370,7 +371,7 @@ def build(name: str, episodes: int | None = None, out: Path | None = None, runs:
 def _refuse_existing(name: str) -> None:
     final = datasets_root() / name
     if final.exists():
-        raise ValueError(f"dataset {name} exists already in {datasets_root()}; remove {final} to build it again")
+        raise UserError(f"dataset {name} exists already in {datasets_root()}; remove {final} to build it again")
 
 
 def _create_atomically(name: str, arguments: dict):

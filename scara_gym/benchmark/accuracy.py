@@ -22,6 +22,7 @@ import numpy as np
 
 from scara_gym import ENV_VERSIONS, LATEST_ENV_ID
 from scara_gym.model import records as R
+from scara_gym.model.checks import UserError
 
 REFERENCE_TOLERANCES = (1e-10, 1e-12)
 # the tolerances under test by default: those of the latest id (Scara-C11-v2)
@@ -115,7 +116,7 @@ def compare_episode(plan: EpisodePlan, rtol: float = DEFAULT_RTOL, atol: float =
     if start_offset is not None:
         start_offset = np.asarray(start_offset, dtype=float)
         if start_offset.shape != (3,) or not np.all(np.isfinite(start_offset)):
-            raise ValueError(f"start_offset must be 3 finite numbers [rad, rad, m], got {start_offset!r}")
+            raise UserError(f"start_offset must be 3 finite numbers [rad, rad, m], got {start_offset!r}")
         offset_options["start"] = np.asarray(plan.options["start"], dtype=float) + start_offset
     runs = [ScaraEnv(**plan.env_kwargs, rtol=rtol, atol=atol, exact_switches=exact_switches,
                      tolerance_weights=tolerance_weights),

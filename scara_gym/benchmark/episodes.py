@@ -22,6 +22,7 @@ from __future__ import annotations
 import numpy as np
 
 from scara_gym.envs import OBSERVATION_LAYOUT
+from scara_gym.model.checks import UserError
 from scara_gym.model.records import Q as STATE_Q
 
 Q, CURRENTS = OBSERVATION_LAYOUT["q"], OBSERVATION_LAYOUT["current"]
@@ -129,7 +130,7 @@ def run_episodes(env, policy, seeds: list[int], options: list[dict | None] | Non
     seeds = [int(s) for s in seeds]
     options = list(options) if options is not None else [None] * len(seeds)
     if len(options) != len(seeds):
-        raise ValueError(f"options must have one entry per seed ({len(seeds)}), got {len(options)}")
+        raise UserError(f"options must have one entry per seed ({len(seeds)}), got {len(options)}")
 
     def run(i: int) -> dict:
         return run_episode(env, policy, seed=seeds[i], options=options[i], record=i < record)

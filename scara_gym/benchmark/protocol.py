@@ -44,6 +44,7 @@ from scara_gym.benchmark.episodes import run_episodes
 from scara_gym.envs.randomization import ParameterRanges, leaf_value
 from scara_gym.envs.task import START_REGION, draw_start
 from scara_gym.model import checks
+from scara_gym.model.checks import UserError, UserTypeError
 from scara_gym.model.params import DEFAULT_PARAMS
 from scara_gym.registration import LATEST_ENV_ID
 
@@ -99,7 +100,7 @@ class Condition:
         """The condition's environment; kwargs: further arguments (e.g. a run's goal_tolerance)."""
         clash = sorted(set(kwargs) & (set(self.env_kwargs) | {"params", "control_mode"}))
         if clash:
-            raise ValueError(f"the condition {self.name!r} sets {clash} itself")
+            raise UserError(f"the condition {self.name!r} sets {clash} itself")
         return gym.make(env_id, control_mode=control_mode, params=DEFAULT_PARAMS.replace(dict(self.params)),
                         **dict(self.env_kwargs), **kwargs)
 
@@ -189,7 +190,7 @@ def get_condition(name: str | Condition) -> Condition:
     if isinstance(name, Condition):
         return name
     if name not in CONDITIONS:
-        raise ValueError(f"unknown condition {name!r}; the protocol's conditions are {sorted(CONDITIONS)}")
+        raise UserError(f"unknown condition {name!r}; the protocol's conditions are {sorted(CONDITIONS)}")
     return CONDITIONS[name]
 
 
@@ -261,12 +262,12 @@ def evaluate(condition: Condition | str, policy_factory: Callable | None = None,
         Per-episode arrays (success, collisions, reach_time, energy, ...; see
         scara_gym.benchmark.episodes) and "condition", the condition's name."""
     if (policy_factory is None) == (policy is None):
-        raise TypeError("evaluate takes one of policy_factory (env -> policy) and policy (obs -> action), "
-                        f"got {'both' if policy is not None else 'neither'}")
+        raise UserTypeError("evaluate takes one of policy_factory (env -> policy) and policy (obs -> action), "
+                            f"got {'both' if policy is not None else 'neither'}")
     condition = get_condition(condition)
     checks.integer("record", record, 0)
     if env_kwargs is not None and not isinstance(env_kwargs, Mapping):
-        raise TypeError(f"env_kwargs must be a mapping of environment arguments or None, got {env_kwargs!r}")
+        raise UserTypeError(f"env_kwargs must be a mapping of environment arguments or None, got {env_kwargs!r}")
     env = condition.make_env(control_mode, env_id, **(env_kwargs or {}))
     seeds = condition.seeds(episodes)
     result = run_episodes(env, policy if policy is not None else policy_factory(env), seeds, [condition.options(s) for s in seeds],

@@ -22,6 +22,7 @@ from stable_baselines3.common.vec_env.base_vec_env import VecEnv
 
 from scara_gym.envs.vector import ScaraVectorEnv
 from scara_gym.model import checks
+from scara_gym.model.checks import UserError
 from scara_gym.registration import ENV_KWARGS, GOAL_ENV_IDS, LATEST_ENV_ID
 
 
@@ -33,8 +34,8 @@ class SB3VecEnv(VecEnv):
     def __init__(self, num_envs: int = 8, env_id: str = LATEST_ENV_ID, **kwargs: Any) -> None:
         checks.choice("env_id", env_id, tuple(i for i in ENV_KWARGS if i not in GOAL_ENV_IDS))
         if "autoreset_mode" in kwargs:
-            raise ValueError("autoreset_mode: SB3VecEnv sets 'SameStep' itself (SB3 reads the final observation "
-                             "in the step that ends an episode)")
+            raise UserError("autoreset_mode: SB3VecEnv sets 'SameStep' itself (SB3 reads the final observation "
+                            "in the step that ends an episode)")
         self.env_id = env_id
         self.venv = ScaraVectorEnv(num_envs=num_envs, autoreset_mode="SameStep", **{**ENV_KWARGS[env_id], **kwargs})
         super().__init__(num_envs, self.venv.single_observation_space, self.venv.single_action_space)

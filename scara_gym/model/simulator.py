@@ -13,6 +13,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from scara_gym.model import checks, records as R
+from scara_gym.model.checks import UserTypeError
 from scara_gym.model.dynamics import tip_positions
 from scara_gym.model.integrator import advance, start
 from scara_gym.model.params import DEFAULT_PARAMS, ScaraParams, resolve_params
@@ -207,7 +208,7 @@ class Simulator:
         config["decelerate"] = checks.flag("decelerate", decelerate)
         config["wall"] = checks.flag("wall", wall)
         if isinstance(stop, str) or not isinstance(stop, (tuple, list, set, frozenset)):
-            raise TypeError(f"stop must be a tuple of stop events among {sorted(STOPS)}, got {stop!r}")
+            raise UserTypeError(f"stop must be a tuple of stop events among {sorted(STOPS)}, got {stop!r}")
         mask = 0
         for name in stop:
             mask |= _choice("stop", name, STOPS)

@@ -45,6 +45,7 @@ import numpy as np
 
 from scara_gym.extras import require
 from scara_gym.model import checks
+from scara_gym.model.checks import UserError, UserTypeError
 from scara_gym.model.params import DEFAULT_PARAMS, ScaraParams
 from scara_gym.model.records import CURRENT, ENERGY, N_EVENTS, N_STATE, RATE, Q
 
@@ -107,12 +108,12 @@ def symbolic_model(params: ScaraParams = DEFAULT_PARAMS, *, control: str = "volt
     import casadi as ca
 
     if not isinstance(params, ScaraParams):
-        raise TypeError(f"params must be a ScaraParams, got {type(params).__name__}")
+        raise UserTypeError(f"params must be a ScaraParams, got {type(params).__name__}")
     if control not in CONTROLS:
-        raise ValueError(f"control must be one of {CONTROLS}, got {control!r}")
+        raise UserError(f"control must be one of {CONTROLS}, got {control!r}")
     widen, exact_switches = checks.flag("widen", widen), checks.flag("exact_switches", exact_switches)
     if critical_rule not in CRITICAL_RULES:
-        raise ValueError(f"critical_rule must be one of {CRITICAL_RULES}, got {critical_rule!r}")
+        raise UserError(f"critical_rule must be one of {CRITICAL_RULES}, got {critical_rule!r}")
     p = _values(params)
     pd = control == "pd"
     x = ca.SX.sym("x", N_STATE)

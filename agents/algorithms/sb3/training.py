@@ -55,6 +55,7 @@ from agents.files import (
 from scara_gym.benchmark.protocol import ENV_ID
 from scara_gym.extras import require
 from scara_gym.model import checks
+from scara_gym.model.checks import UserError
 from scara_gym.registration import ENV_KWARGS, GOAL_ENV_IDS
 
 ALGORITHMS = ("ppo", "sac", "td3")
@@ -226,7 +227,7 @@ def train(algo: str, out: str | Path, env_id: str = ENV_ID, control_mode: str = 
     replace it), its folder locked for the whole run (agents.files.exclusive); returns `out`.
     See the module docstring."""
     if env_id not in ENV_KWARGS:
-        raise ValueError(f"env_id must be one of {sorted(ENV_KWARGS)}, got {env_id!r}")
+        raise UserError(f"env_id must be one of {sorted(ENV_KWARGS)}, got {env_id!r}")
     hyper = check_hyperparams(dict(hyperparams) if hyperparams is not None  # before the folder is made or locked
                               else load_hyperparams(algo, env_id, control_mode))
     if total_timesteps is not None:
@@ -253,7 +254,7 @@ def _train(algo: str, out: str | Path, env_id: str, control_mode: str, seed: int
     total_timesteps = int(total_timesteps or hyper["n_timesteps"])
     out = Path(out).resolve()
     if SHIPPED_MODELS.resolve() in (out, *out.parents):
-        raise ValueError(f"training writes under runs/ or --out, never into the shipped models ({out})")
+        raise UserError(f"training writes under runs/ or --out, never into the shipped models ({out})")
     continuing = claim_run_folder(out, run_record(algo, env_id, control_mode, seed, hyper), resume, overwrite)
     if continuing and (out / "config.json").exists() and (out / "model.zip").exists():
         return out  # finished before: nothing more to do
@@ -343,7 +344,7 @@ def train_residual_ppo(control_mode: str = "pd", randomize_target: bool = False,
     resumes from its snapshot when run again into the same folder with ``resume``. ``variant`` ("dr",
     "frugal") takes the YAML block "MODE-VARIANT"."""
     if variant is not None and variant not in VARIANTS:
-        raise ValueError(f"variant must be None or one of {VARIANTS}, got {variant!r}")
+        raise UserError(f"variant must be None or one of {VARIANTS}, got {variant!r}")
     hyper = (load_hyperparams("ppo-residual", env_id, control_mode, variant, randomize_target)
              if hyperparams is None else dict(hyperparams))
     hyper.setdefault("eval_freq", eval_freq)
