@@ -92,7 +92,8 @@ def _events(env) -> list[tuple[int, int, float]]:
 
 def _paired_time_errors(events: list, reference: list) -> tuple[float, int]:
     """Largest |t - t_ref| over events paired by (kind, axis) and order, and the number of
-    events without a partner."""
+    events without a partner.
+    """
     worst, unpaired = 0.0, 0
     for key in {e[:2] for e in events} | {e[:2] for e in reference}:
         times = [e[2] for e in events if e[:2] == key]
@@ -109,7 +110,8 @@ def compare_episode(plan: EpisodePlan, rtol: float = DEFAULT_RTOL, atol: float =
     """Run the plan at (rtol, atol, tolerance_weights) and at the reference tolerances (with exact
     switches, unweighted); the worst errors. start_offset [rad, rad, m]: the run under test starts
     that far from the plan's start (the problem's conditioning: with the reference's tolerances,
-    how far the exact solution moves for a start that close)."""
+    how far the exact solution moves for a start that close).
+    """
     from scara_gym.envs.scara_env import ScaraEnv
 
     offset_options = dict(plan.options)

@@ -122,7 +122,7 @@ class ScaraEnv(gym.Env):
     ## Arguments
 
     ``ScaraEnv(config=None, render_mode=None, **overrides)``: ``config`` is an
-    :class:`~scara_gym.envs.config.EnvConfig` (default ``EnvConfig()``, the latest id's
+    `EnvConfig` (default ``EnvConfig()``, the latest id's
     arguments), and every field of it can be given as a keyword, over ``config``:
 
 {ARGUMENTS}
@@ -206,6 +206,7 @@ class ScaraEnv(gym.Env):
 
     @property
     def target(self) -> np.ndarray:
+        """The episode's target configuration q^ [rad, rad, m] (a copy)."""
         return self.task.robot_params["target"][0].copy()
 
     def setpoint_to_action(self, setpoint) -> np.ndarray:
@@ -213,15 +214,18 @@ class ScaraEnv(gym.Env):
         return self.task.setpoint_to_action(setpoint)
 
     def action_to_setpoint(self, action) -> np.ndarray:
+        """The set-point q^ [rad, rad, m] a "pd" action commands (the inverse of setpoint_to_action)."""
         return self.task.action_to_setpoint(action)
 
     def pd_action(self, obs, setpoint) -> np.ndarray:
         """The "voltage"-mode action that applies the C11 PD law to a set-point on an
-        observation (see :meth:`ScaraTask.pd_action`)."""
+        observation (see `ScaraTask.pd_action`).
+        """
         return self.task.pd_action(obs, setpoint)
 
     # -- API ---------------------------------------------------------------------------
     def reset(self, *, seed: int | None = None, options: dict | None = None):
+        """Start an episode (Gymnasium's Env.reset): the observation and the info of its first state."""
         super().reset(seed=checks.seed("seed", seed))
         info = self.task.reset_robot(0, self.np_random, options)
         self._needs_reset = False
@@ -231,6 +235,7 @@ class ScaraEnv(gym.Env):
         return self.task.observation(0, self.np_random), info
 
     def step(self, action):
+        """One control step of the robot (Gymnasium's Env.step): observation, reward, terminated, truncated, info."""
         if self._needs_reset:
             raise RuntimeError("the episode has ended (or never started): call reset() before step()")
         if not (type(action) is np.ndarray and action.shape == (3,) and action.dtype.char in "fd"
@@ -254,6 +259,7 @@ class ScaraEnv(gym.Env):
 
     # -- rendering ---------------------------------------------------------------------
     def render(self):
+        """The frame of the render mode: an RGB array, or the window drawn ("human")."""
         if self.render_mode is None:
             gym.logger.warn("render() called without a render_mode; pass render_mode='rgb_array' "
                             "or 'human' to gym.make")
@@ -269,6 +275,7 @@ class ScaraEnv(gym.Env):
         return frame if self.render_mode == "rgb_array" else None
 
     def close(self):
+        """Close the render window, if one is open."""
         if self._renderer is not None:
             self._renderer.close()
             self._renderer = None
@@ -296,7 +303,8 @@ def card(summary: str, config: EnvConfig, history: str) -> str:
     """ScaraEnv's card for ``config``: ``summary`` (title and paragraphs), the spaces, reward,
     starting state and episode end, the observation bounds and argument defaults of
     ``config``, and ``history`` (the version history's lines); each registered variant's
-    card is one of these (scara_gym.envs.variants)."""
+    card is one of these (scara_gym.envs.variants).
+    """
     body = _BODY.replace("{OBSERVATIONS}", textwrap.indent(observation_table(ScaraTask(config)), "    "))
     body = body.replace("{ARGUMENTS}", arguments_markdown(config, (("render_mode", None, RENDER_MODE_DOC),),
                                                           indent="    "))

@@ -42,7 +42,8 @@ def check_autoreset_mode(autoreset_mode) -> AutoresetMode:
 
 def check_reset_mask(options: dict, num_envs: int, autoreset_mode: AutoresetMode) -> np.ndarray | None:
     """The reset options' "reset_mask" (taken out of ``options``): None, or a bool array of
-    shape (num_envs,) with a True, in "Disabled" autoreset mode only (Gymnasium's rules)."""
+    shape (num_envs,) with a True, in "Disabled" autoreset mode only (Gymnasium's rules).
+    """
     if "reset_mask" not in options:
         return None
     mask = options.pop("reset_mask")
@@ -119,6 +120,7 @@ class ScaraVectorEnv(VectorEnv):
 
     # -- episodes ----------------------------------------------------------------------
     def reset(self, *, seed: int | list[int | None] | None = None, options: dict | None = None):
+        """Start every robot's episode (Gymnasium's VectorEnv.reset); seed: one, or one per robot."""
         seeds = vector_seeds(seed, self.num_envs)
         options = checks.mapping("reset options", options, (*RESET_OPTIONS, "reset_mask"))
         mask = check_reset_mask(options, self.num_envs, self.autoreset_mode)
@@ -148,6 +150,7 @@ class ScaraVectorEnv(VectorEnv):
 
     # -- stepping ----------------------------------------------------------------------
     def step(self, actions):
+        """One control step of every robot (Gymnasium's VectorEnv.step), the episodes that end reset as the autoreset mode says."""
         if not self._started:
             raise RuntimeError("call reset() before step()")
         task = self.task
@@ -184,7 +187,8 @@ class ScaraVectorEnv(VectorEnv):
     def _reset_robots(self, indices) -> None:
         """Autoreset every robot of ``indices`` or none: each next episode is drawn on a copy of
         its robot's generator before any robot changes (the same draws as on the generator
-        itself); a robot whose episode cannot start is named, and no robot is reset."""
+        itself); a robot whose episode cannot start is named, and no robot is reset.
+        """
         drawn = []
         for i in indices:
             rng = copy.deepcopy(self._rngs[i])

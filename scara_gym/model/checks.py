@@ -31,7 +31,8 @@ class UserTypeError(UserError, TypeError):
 
 class UserKeyError(UserError, KeyError):
     """A `UserError` that names something not there (a parameter, a hyperparameter block, a
-    shipped solution): a KeyError (and a LookupError) as well, shown without KeyError's quotes."""
+    shipped solution): a KeyError (and a LookupError) as well, shown without KeyError's quotes.
+    """
 
     def __str__(self) -> str:
         return str(self.args[0]) if len(self.args) == 1 else super().__str__()
@@ -117,7 +118,8 @@ def real_array(name: str, value: Any, shape: tuple[int, ...], *, unit: str = "",
                range_text: str = "") -> np.ndarray:
     """A float64 C-contiguous array of the given shape, finite and (where bounds are given)
     inside [low, high] elementwise. Lists, tuples and arrays of real numbers are accepted;
-    complex, boolean, string and object contents are not."""
+    complex, boolean, string and object contents are not.
+    """
     what = f"{name} must be {_count(shape)} finite numbers{_unit(unit)}"
     if range_text:
         what += f" with {range_text}"
@@ -159,7 +161,8 @@ TOLERANCE_WEIGHT_RANGE = (1e-3, 1e3)
 
 def tolerance_weights(value: Any, groups: dict) -> np.ndarray:
     """A factor on rtol and atol per state component from None (all 1) or a dict of group name
-    (a key of groups, which maps it to its slice of the state) to a factor in TOLERANCE_WEIGHT_RANGE."""
+    (a key of groups, which maps it to its slice of the state) to a factor in TOLERANCE_WEIGHT_RANGE.
+    """
     weights = np.ones(max(part.stop for part in groups.values()))
     for group, factor in mapping("tolerance_weights", value, groups).items():
         weights[groups[group]] = real(f"tolerance_weights[{group!r}]", factor, *TOLERANCE_WEIGHT_RANGE)

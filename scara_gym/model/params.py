@@ -10,8 +10,8 @@ seed's 1.4555 s.
 
 Every leaf field carries its unit and allowed range in ``metadata``; the
 validation message names the field path and that range. The hot path does not
-see these objects: :meth:`ScaraParams.to_record` packs them into the ``PARAMS``
-record of :mod:`scara_gym.model.records`.
+see these objects: `ScaraParams.to_record` packs them into the ``PARAMS``
+record of `scara_gym.model.records`.
 """
 
 from __future__ import annotations
@@ -33,7 +33,8 @@ def _quantity(default: float, unit: str, low: float, high: float, doc: str = "",
               low_open: bool = False) -> Any:
     """A scalar field: its unit and allowed interval [low, high] (open at low if low_open)
     in ``metadata``. The intervals keep every quantity physical and float64 arithmetic far
-    from overflow; they span about three decades around the C11 values."""
+    from overflow; they span about three decades around the C11 values.
+    """
     return field(default=default, metadata={"unit": unit, "range": (low, high, low_open), "doc": doc})
 
 
@@ -197,10 +198,12 @@ class ScaraParams:
 
     @property
     def voltage_limits(self) -> np.ndarray:
+        """The axes' armature voltage limits Umax [V], shape (3,)."""
         return np.array([a.voltage_limit for a in self.axes])
 
     @property
     def current_limits(self) -> np.ndarray:
+        """The axes' armature current limits Imax [A], shape (3,)."""
         return np.array([a.current_limit for a in self.axes])
 
     def replace(self, overrides: Mapping[str, Any] | None = None, **kwargs: Any) -> ScaraParams:
@@ -211,7 +214,8 @@ class ScaraParams:
             **kwargs: more overrides, a keyword per path without a dot (e.g. a whole ``task=...``).
 
         Returns:
-            The new, validated ScaraParams (a bad value raises ValueError naming its path and range)."""
+            The new, validated ScaraParams (a bad value raises ValueError naming its path and range).
+        """
         if overrides is not None and not isinstance(overrides, Mapping):
             raise UserTypeError(f"parameter overrides must be a dict of dotted paths -> values, e.g. "
                                 f"{{'arm.load_mass': 1.0}}, got {overrides!r}")
@@ -313,7 +317,8 @@ DEFAULT_PARAMS = ScaraParams()
 
 def resolve_params(params: ScaraParams | Mapping[str, Any] | None) -> ScaraParams:
     """A ScaraParams from None (the C11 defaults), a ScaraParams, or a dict of dotted-path
-    overrides of the defaults."""
+    overrides of the defaults.
+    """
     if params is None:
         return DEFAULT_PARAMS
     if isinstance(params, ScaraParams):

@@ -1,23 +1,23 @@
 """The C11 model in CasADi: the symbolic twin of the compiled dynamics, for optimal control.
 
 Everything the compiled core evaluates, as CasADi functions built from the same
-:class:`~scara_gym.model.params.ScaraParams` and the same switches (:func:`symbolic_model`):
+`ScaraParams` and the same switches (`symbolic_model`):
 
-- ``rhs(x, command, modes) -> x'``: :func:`scara_gym.model.dynamics.derivative` in every
+- ``rhs(x, command, modes) -> x'``: `scara_gym.model.dynamics.derivative` in every
   hybrid mode: held currents, the PD law's located saturation (or its clip), the critical
   zone's widened voltage limits and the ``dec`` rule's scaled kinematics;
 - ``voltages(x, command, modes) -> U``: the armature voltages of that mode;
 - ``events(x, command, modes) -> g``: the event functions of
-  :func:`scara_gym.model.integrator.event_values` (positive while the mode holds; the
-  indices ``E_*`` of :mod:`scara_gym.model.records`);
+  `scara_gym.model.integrator.event_values` (positive while the mode holds; the
+  indices ``E_*`` of `scara_gym.model.records`);
 - ``tip(q) -> (x, y, z)``: the forward kinematics of the joint positions;
 - ``free(x, U) -> x'``: the model driven by voltages with the currents free (no hold), on
   the 9 physical states: what a direct transcription integrates, keeping the currents
   inside their limits by a path constraint instead.
 
-``x`` is the state vector of :data:`~scara_gym.model.records.STATE` (10 entries: q, rates,
+``x`` is the state vector of `STATE` (10 entries: q, rates,
 currents, energy); ``modes`` the discrete modes of a ``ROBOT`` record as floats, in the
-order of :data:`MODES`. A test holds every function to the compiled one at random states in
+order of `MODES`. A test holds every function to the compiled one at random states in
 every mode. CasADi is the ``control`` install extra; this module imports it when a model is
 built. Example, a fixed-step integrator of the PD-controlled arm (currents free)::
 
@@ -33,7 +33,7 @@ built. Example, a fixed-step integrator of the PD-controlled arm (currents free)
     step = ca.Function("step", [x, setpoint], [x + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)])
 
 An optimal-control problem uses ``free`` (smooth) with the mode structure as constraints,
-as :mod:`agents.policies.optimal` and :mod:`agents.policies.mpc` do.
+as `agents.policies.optimal` and `agents.policies.mpc` do.
 """
 
 from __future__ import annotations
@@ -103,7 +103,8 @@ def symbolic_model(params: ScaraParams = DEFAULT_PARAMS, *, control: str = "volt
 
     Returns:
         The SymbolicModel: CasADi functions ``rhs``, ``voltages``, ``events``, ``tip`` and
-        ``free`` (voltages in, currents free), and the ``params`` they were built from."""
+        ``free`` (voltages in, currents free), and the ``params`` they were built from.
+    """
     require("casadi")
     import casadi as ca
 
