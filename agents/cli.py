@@ -28,9 +28,9 @@ import sys
 from pathlib import Path
 
 from agents.algorithms.bc_config import BCConfig
+from agents.algorithms.loaders import POLICY_SPECS, shipped_model
 from agents.algorithms.progress import saved_to
 from agents.algorithms.sb3.hyperparams import load_hyperparams, numba_threads
-from agents.algorithms.sb3.policy import resolve_model
 from agents.algorithms.torch_ppo_config import SEED_MAX, Config, parse_floats, parse_reward_weights
 from agents.experiments import datasets, sweep as sweeps
 from agents.experiments.checkpoints import select_checkpoint
@@ -49,13 +49,10 @@ from agents.policies.optimal.policy import solve_reference
 from scara_gym import DEFAULT_PARAMS
 from scara_gym.benchmark.protocol import CONDITIONS, ENV_ID, FIXED_SHIFTS, protocol_record
 from scara_gym.extras import missing_extra_message, require
+from scara_gym.model.checks import UserError
 from scara_gym.registration import ENV_IDS
 
 MODES = ("pd", "voltage")
-
-
-class UserError(Exception):
-    """A mistake in a command line, reported as one line."""
 
 
 def _add_trust(p) -> None:
@@ -108,8 +105,7 @@ def _add_evaluate(sub) -> None:
                        description="Run policies over the same fixed seeds and write table.md, table.csv, "
                                    "tip_paths.png, wall_and_height.png (and NAME_results.json per shipped PPO).")
     p.add_argument("--policies", nargs="+", default=["pd", "dec-continue", "dec-restart"],
-                   help="policy specs: pd, dec-continue[:d], dec-restart[:d], optimal, ppo:NAME_OR_DIR, "
-                        "sb3:RUN_DIR, torchppo:RUN_DIR, shield:SPEC")
+                   help=f"policy specs (agents.algorithms.loaders): {POLICY_SPECS}")
     p.add_argument("--env-id", choices=ENV_IDS, default=ENV_ID,
                    help=f"the id the episodes run on (default: the protocol's, {ENV_ID}; every policy, the "
                         "shipped PPO agents trained on Scara-C11-v0 included, is scored on it as it is)")
@@ -130,7 +126,7 @@ def _evaluate(args, argv) -> list[dict]:
     _seeds("--seed", args.seed)
     rows, traces = evaluate(args.policies, args.control_mode, args.condition, args.episodes, env_id=args.env_id,
                             seed=args.seed)
-    models = {i: resolve_model(s.split(":", 1)[1]) for i, s in enumerate(args.policies) if s.startswith("ppo:")}
+    models = {i: model for i, s in enumerate(args.policies) if (model := shipped_model(s)) is not None}
     evaluation_report(rows, traces, args.out, list(models.values()))
     for i, model_dir in models.items():  # the figures a model is tested against once shipped (its results.json)
         row = rows[i]
@@ -675,6 +671,12 @@ def run(argv: list[str] | None = None):
             os.environ[TRUST_ENV] = trusted_before
 
 
+USER_ERRORS = (UserError, FileNotFoundError, RunLocked)
+"""what ends a subcommand in one line and exit status 2 (beside argparse's own and a missing
+extra's ModuleNotFoundError): the project's UserError, raised by its checks; a path that is not
+there; a run folder another process is writing. Anything else is a bug and shows its traceback."""
+
+
 def _run_handler(args, argv):
     try:
         return args.handler(args, argv)
@@ -684,9 +686,8 @@ def _run_handler(args, argv):
             raise
         print(f"scara-agents {args.command}: error: {message}", file=sys.stderr)
         raise SystemExit(2) from None
-    except (UserError, ValueError, TypeError, FileNotFoundError, KeyError, LookupError, RunLocked) as error:
+    except USER_ERRORS as error:
         if args.debug:
             raise
-        message = error.args[0] if isinstance(error, KeyError) and error.args else error
-        print(f"scara-agents {args.command}: error: {message}", file=sys.stderr)
+        print(f"scara-agents {args.command}: error: {error}", file=sys.stderr)
         raise SystemExit(2) from None

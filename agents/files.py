@@ -12,16 +12,16 @@ policy may load, a manifest that lists nothing trusts nothing, a file the folder
 loader wants but the manifest does not list is refused unread, and every file is read once into
 memory, checked against its digest and deserialized from those same bytes (the manifest too:
 its digest is taken of the bytes that were parsed), so a file swapped after its check is never
-the one loaded (:func:`verify_digests`, :class:`Checked`).
+the one loaded (`verify_digests`, `Checked`).
 
 SB3's ``model.zip`` and replay buffers and its ``vecnormalize.pkl`` are pickle by design: loading
-one runs whatever code it holds. They load only from a trusted folder (:func:`require_trusted`):
-one whose manifest this machine's own runs wrote (recorded in the trust store, :func:`trust_store`,
+one runs whatever code it holds. They load only from a trusted folder (`require_trusted`):
+one whose manifest this machine's own runs wrote (recorded in the trust store, `trust_store`,
 which is refused when it is a symlink, another user's or writable by others), one shipped or
-published with the package (:data:`PUBLISHED_MANIFESTS`), or any folder when the user says so
+published with the package (`PUBLISHED_MANIFESTS`), or any folder when the user says so
 (``--trust``, or ``SCARA_GYM_TRUST=1`` for a program and the workers it starts).
 
-A run folder is claimed by its trainer under its lock (:func:`claim_run_folder`): a folder that
+A run folder is claimed by its trainer under its lock (`claim_run_folder`): a folder that
 holds a run of other settings, or one written by a newer version, is refused by name; one that holds
 the same run needs ``resume`` (continue it) or ``overwrite`` (train it again from scratch).
 """
@@ -44,6 +44,7 @@ from pathlib import Path
 import numpy as np
 
 from scara_gym.extras import require
+from scara_gym.model.checks import UserError
 
 
 def write_atomic(path: str | Path, data: bytes | str) -> Path:
@@ -85,7 +86,7 @@ def save_torch(value, path: str | Path) -> Path:
 def load_torch(path: str | Path, map_location="cpu", data: bytes | None = None):
     """``torch.load`` of tensors, numbers and plain containers only (weights_only=True): a file
     with any other object, as a pickle payload would need, is refused with an error naming it.
-    ``data``: the file's bytes, already read and checked (:func:`verify_digests`): loaded from
+    ``data``: the file's bytes, already read and checked (`verify_digests`): loaded from
     them, ``path`` only naming the file."""
     import pickle
 
@@ -96,8 +97,8 @@ def load_torch(path: str | Path, map_location="cpu", data: bytes | None = None):
         source = path if data is None else io.BytesIO(data)
         return torch.load(source, map_location=map_location, weights_only=True)
     except (pickle.UnpicklingError, RuntimeError, EOFError, OSError) as error:
-        raise ValueError(f"{path}: not a weights file this package wrote, refused without running it "
-                         f"({type(error).__name__}: {str(error).splitlines()[0] if str(error) else ''})") from None
+        raise UserError(f"{path}: not a weights file this package wrote, refused without running it "
+                        f"({type(error).__name__}: {str(error).splitlines()[0] if str(error) else ''})") from None
 
 
 def save_arrays(path: str | Path, arrays: dict[str, np.ndarray]) -> Path:
@@ -115,8 +116,8 @@ def load_arrays(path: str | Path) -> dict[str, np.ndarray]:
         with np.load(path, allow_pickle=False) as data:
             return {k: data[k] for k in data.files}
     except (ValueError, OSError, EOFError, zipfile.BadZipFile) as error:
-        raise ValueError(f"{path}: not an array file this package wrote, refused without running it "
-                         f"({type(error).__name__}: {error})") from None
+        raise UserError(f"{path}: not an array file this package wrote, refused without running it "
+                        f"({type(error).__name__}: {error})") from None
 
 
 class RunLocked(RuntimeError):
@@ -204,7 +205,7 @@ def write_digests(folder: str | Path, names: Iterable[str]) -> Path:
     folder = Path(folder)
     lines = [f"{file_digest(folder / name)}  {name}\n" for name in sorted(names) if (folder / name).is_file()]
     if not lines:
-        raise ValueError(f"{folder}: none of {sorted(names)} to list in {DIGESTS}; an empty manifest is never written")
+        raise UserError(f"{folder}: none of {sorted(names)} to list in {DIGESTS}; an empty manifest is never written")
     return write_atomic(folder / DIGESTS, "".join(lines))
 
 
@@ -216,11 +217,11 @@ def read_once(path: str | Path) -> bytes:
         descriptor = os.open(path, os.O_RDONLY | os.O_NOFOLLOW)
     except OSError as error:
         if path.is_symlink():
-            raise ValueError(f"{path}: a symlink, refused (a folder's files are its own)") from None
-        raise ValueError(f"{path}: cannot be read ({error.strerror})") from None
+            raise UserError(f"{path}: a symlink, refused (a folder's files are its own)") from None
+        raise UserError(f"{path}: cannot be read ({error.strerror})") from None
     with os.fdopen(descriptor, "rb") as file:
         if not stat.S_ISREG(os.fstat(file.fileno()).st_mode):
-            raise ValueError(f"{path}: not a regular file, refused")
+            raise UserError(f"{path}: not a regular file, refused")
         return file.read()
 
 
@@ -246,23 +247,23 @@ def read_manifest(folder: str | Path) -> tuple[str, dict[str, str]] | None:
     try:
         text = data.decode()
     except UnicodeDecodeError:
-        raise ValueError(f"{path}: not a manifest (not text), refused") from None
+        raise UserError(f"{path}: not a manifest (not text), refused") from None
     for number, line in enumerate(text.splitlines(), 1):
         digest, separator, name = line.partition("  ")
         if not separator or not _DIGEST.fullmatch(digest) or not _listed_name(name):
-            raise ValueError(f"{path}, line {number}: not 'SHA-256  NAME' with NAME inside the folder, refused")
+            raise UserError(f"{path}, line {number}: not 'SHA-256  NAME' with NAME inside the folder, refused")
         if name in listed:
-            raise ValueError(f"{path}: lists {name} twice, refused")
+            raise UserError(f"{path}: lists {name} twice, refused")
         listed[name] = digest
     if not listed:
-        raise ValueError(f"{path} lists no file: an empty manifest trusts nothing (a manifest lists every file the "
-                         "folder may load), refused")
+        raise UserError(f"{path} lists no file: an empty manifest trusts nothing (a manifest lists every file the "
+                        "folder may load), refused")
     return hashlib.sha256(data).hexdigest(), listed
 
 
 @dataclass(frozen=True)
 class Checked:
-    """A folder's files as they were read once and checked (:func:`verify_digests`): load from
+    """A folder's files as they were read once and checked (`verify_digests`): load from
     these bytes, never from the folder again."""
 
     folder: Path
@@ -291,19 +292,19 @@ def json_record(path: str | Path, data: bytes | str | None = None) -> dict:
     try:
         value = json.loads(Path(path).read_bytes() if data is None else data)
     except (json.JSONDecodeError, UnicodeDecodeError) as error:
-        raise ValueError(f"{path}: not JSON ({error})") from None
+        raise UserError(f"{path}: not JSON ({error})") from None
     if not isinstance(value, dict):
-        raise ValueError(f"{path}: holds a JSON {type(value).__name__}, not the object (the record) expected")
+        raise UserError(f"{path}: holds a JSON {type(value).__name__}, not the object (the record) expected")
     return value
 
 
 def verify_digests(folder: str | Path, wanted: Iterable[str] = ()) -> Checked:
     """Read ``folder``'s manifest and every file it lists, once each, into memory, every one
-    with the SHA-256 its manifest records; returns them (:class:`Checked`). A file listed but
+    with the SHA-256 its manifest records; returns them (`Checked`). A file listed but
     missing or changed is refused by name, and so is a file of ``wanted`` (what the caller may
     load) that the folder holds and its manifest does not list: a partial manifest trusts nothing
     for it, and it is never read. A folder without a manifest: the files of ``wanted`` it holds,
-    unchecked (its loaders run no code: weights_only, JSON; pickle needs :func:`require_trusted`)."""
+    unchecked (its loaders run no code: weights_only, JSON; pickle needs `require_trusted`)."""
     folder = Path(folder)
     manifest = read_manifest(folder)
     if manifest is None:
@@ -311,17 +312,17 @@ def verify_digests(folder: str | Path, wanted: Iterable[str] = ()) -> Checked:
     digest, listed = manifest
     for name in wanted:
         if name not in listed and ((folder / name).exists() or (folder / name).is_symlink()):
-            raise ValueError(f"{folder / name}: not listed in {folder / DIGESTS}, which lists every file the folder "
-                             "may load: refused unread")
+            raise UserError(f"{folder / name}: not listed in {folder / DIGESTS}, which lists every file the folder "
+                            "may load: refused unread")
     files = {}
     for name, expected in listed.items():
         path = folder / name
         if not path.exists() and not path.is_symlink():
-            raise ValueError(f"{path}: listed in {folder / DIGESTS} but missing")
+            raise UserError(f"{path}: listed in {folder / DIGESTS} but missing")
         data = read_once(path)
         if hashlib.sha256(data).hexdigest() != expected:
-            raise ValueError(f"{path}: its SHA-256 is not the one {folder / DIGESTS} records; the file was changed or "
-                             "corrupted, and is refused")
+            raise UserError(f"{path}: its SHA-256 is not the one {folder / DIGESTS} records; the file was changed or "
+                            "corrupted, and is refused")
         files[name] = data
     return Checked(folder, files, digest)
 
@@ -339,7 +340,7 @@ PUBLISHED_MANIFESTS_ENV = "SCARA_GYM_PUBLISHED_MANIFESTS"
 leave the package's list as it is)"""
 
 
-class UntrustedFolder(ValueError):
+class UntrustedFolder(UserError):
     """A folder whose pickle files neither this machine's runs nor the package vouch for."""
 
 
@@ -381,22 +382,22 @@ def _checked_store(descriptor: int, store: Path) -> None:
         problem = f"writable by group or others (mode {stat.S_IMODE(status.st_mode):o}; chmod go-w it)"
     else:
         return
-    raise ValueError(f"{store}: the trust store is {problem}, so others could make any folder trusted; refused "
-                     f"(or set {TRUST_STORE_ENV} to a file of your own)")
+    raise UserError(f"{store}: the trust store is {problem}, so others could make any folder trusted; refused "
+                    f"(or set {TRUST_STORE_ENV} to a file of your own)")
 
 
 def _open_store(store: Path, flags: int) -> int | None:
     """A descriptor on the trust store, opened without following a symlink and checked
-    (:func:`_checked_store`); None where it does not exist and ``flags`` do not create it."""
+    (`_checked_store`); None where it does not exist and ``flags`` do not create it."""
     try:
         descriptor = os.open(store, flags | os.O_NOFOLLOW, 0o600)
     except FileNotFoundError:
         return None
     except OSError as error:
         if store.is_symlink():
-            raise ValueError(f"{store}: the trust store is a symlink, so others could make any folder trusted; "
-                             f"refused (or set {TRUST_STORE_ENV} to a file of your own)") from None
-        raise ValueError(f"{store}: the trust store cannot be opened ({error.strerror})") from None
+            raise UserError(f"{store}: the trust store is a symlink, so others could make any folder trusted; "
+                            f"refused (or set {TRUST_STORE_ENV} to a file of your own)") from None
+        raise UserError(f"{store}: the trust store cannot be opened ({error.strerror})") from None
     try:
         _checked_store(descriptor, store)
     except BaseException:
@@ -423,10 +424,10 @@ def record_trusted(folder: str | Path) -> None:
     """Add ``folder``'s manifest to the trust store: its files are this machine's own. One line
     appended in one write, on a line of its own (a crash leaves the store without that line, or
     with part of it, which matches no manifest). A manifest that lists nothing is refused
-    (:func:`read_manifest`): it is never recorded."""
+    (`read_manifest`): it is never recorded."""
     manifest = read_manifest(folder)
     if manifest is None:
-        raise ValueError(f"{folder}: no {DIGESTS} to record as trusted")
+        raise UserError(f"{folder}: no {DIGESTS} to record as trusted")
     digest = manifest[0]
     store = trust_store()
     text = _store_text()
@@ -443,12 +444,12 @@ def record_trusted(folder: str | Path) -> None:
 
 
 def publish_manifest(folder: str | Path) -> None:
-    """Add ``folder``'s manifest to the published ones (:func:`published_manifests`; commit it with
+    """Add ``folder``'s manifest to the published ones (`published_manifests`; commit it with
     the published run: it is then trusted wherever the package is), keeping the list sorted;
     written atomically. A manifest that lists nothing is refused."""
     manifest = read_manifest(folder)
     if manifest is None:
-        raise ValueError(f"{folder}: no {DIGESTS} to publish")
+        raise UserError(f"{folder}: no {DIGESTS} to publish")
     listed = published_manifests()
     known = _digests_in(listed)
     if manifest[0] not in known:
@@ -462,7 +463,7 @@ def _vouched(digest: str) -> bool:
 
 def is_trusted(folder: str | Path) -> bool:
     """True when ``folder`` has a manifest that lists files and that the package publishes or this
-    machine's runs wrote (its files are checked when they are read: :func:`require_trusted`)."""
+    machine's runs wrote (its files are checked when they are read: `require_trusted`)."""
     try:
         manifest = read_manifest(folder)
     except ValueError:
@@ -476,10 +477,10 @@ def trust_everything() -> bool:
 
 
 def require_trusted(folder: str | Path, trust: bool = False, wanted: Iterable[str] = ()) -> Checked:
-    """The files of ``folder`` to unpickle from, read once and checked (:func:`verify_digests`: a
+    """The files of ``folder`` to unpickle from, read once and checked (`verify_digests`: a
     file of ``wanted`` it holds but its manifest does not list is refused unread), when that
     manifest is trusted (published, or this machine's own) or ``trust`` (or
-    :func:`trust_everything`) says so; UntrustedFolder otherwise. Unpickle from the bytes it
+    `trust_everything`) says so; UntrustedFolder otherwise. Unpickle from the bytes it
     returns, never from the folder again."""
     folder = Path(folder)
     checked = verify_digests(folder, wanted)
@@ -509,20 +510,20 @@ IDENTITY = ("trainer", "algo", "env_id", "control_mode", "seed")
 
 
 def holds_run(folder: str | Path) -> bool:
-    """True when ``folder`` holds a run that has trained (:data:`TRAINED`)."""
+    """True when ``folder`` holds a run that has trained (`TRAINED`)."""
     return any((Path(folder) / name).exists() for name in TRAINED)
 
 
 def recorded_run(folder: str | Path) -> dict:
     """What the run in ``folder`` is: its run.json, else (runs written before it) what its
-    config.json says of :data:`IDENTITY`; a run of a newer format is refused by name."""
+    config.json says of `IDENTITY`; a run of a newer format is refused by name."""
     folder = Path(folder)
     if (folder / RUN_RECORD).is_file():
         record = json_record(folder / RUN_RECORD)
     elif (folder / "config.json").is_file():
         config = json_record(folder / "config.json")
-        torch_run = config.get("algo") == "torch-ppo"
-        record = {"trainer": "torch-ppo" if torch_run else "sb3", "algo": config.get("algo", "ppo"),
+        torch_run = config.get("algo") in ("torch-ppo", "bc")  # the torch trainers write their algo as their name
+        record = {"trainer": config["algo"] if torch_run else "sb3", "algo": config.get("algo", "ppo"),
                   "env_id": config.get("env_id"), "seed": config.get("seed"),
                   "control_mode": config.get("control_mode") if torch_run
                   else config.get("env_kwargs", {}).get("control_mode")}
@@ -530,8 +531,8 @@ def recorded_run(folder: str | Path) -> dict:
         return {}
     written = record.get("run_format", 1)
     if not isinstance(written, int) or written > RUN_FORMAT:
-        raise ValueError(f"out: {folder} was written by a newer version of scara_gym (run format {written}; this "
-                         f"version reads {RUN_FORMAT} and older): train with that version, or give another folder")
+        raise UserError(f"out: {folder} was written by a newer version of scara_gym (run format {written}; this "
+                        f"version reads {RUN_FORMAT} and older): train with that version, or give another folder")
     return record
 
 
@@ -550,8 +551,8 @@ def _differences(recorded: dict, record: dict) -> list[str]:
 
 def claim_run_folder(folder: str | Path, run: dict, resume: bool, overwrite: bool) -> bool:
     """The gate every trainer passes under the folder's lock before it trains into ``folder``.
-    ``run``: what the new run is (:data:`IDENTITY` and ``settings``, the settings a resumed run must
-    share). A folder that holds a trained run (:func:`holds_run`) is emptied with ``overwrite``
+    ``run``: what the new run is (`IDENTITY` and ``settings``, the settings a resumed run must
+    share). A folder that holds a trained run (`holds_run`) is emptied with ``overwrite``
     (its RUN_ENTRIES only), refused when it holds another run or one of a newer version, and
     otherwise needs ``resume``. Writes run.json; returns True when a run is there to continue."""
     folder = Path(folder)
@@ -567,12 +568,12 @@ def claim_run_folder(folder: str | Path, run: dict, resume: bool, overwrite: boo
     elif held:
         differences = _differences(recorded_run(folder), record)
         if differences:
-            raise ValueError(f"out: {folder} holds another run ({'; '.join(differences)}); give another "
-                             "folder, or overwrite=True (--overwrite) to replace it")
+            raise UserError(f"out: {folder} holds another run ({'; '.join(differences)}); give another "
+                            "folder, or overwrite=True (--overwrite) to replace it")
         if not resume:
-            raise ValueError(f"out: {folder} holds this run already; resume=True (--resume) continues it (a finished "
-                             "one: nothing to do), overwrite=True (--overwrite) trains it again from scratch, or give "
-                             "another folder")
+            raise UserError(f"out: {folder} holds this run already; resume=True (--resume) continues it (a finished "
+                            "one: nothing to do), overwrite=True (--overwrite) trains it again from scratch, or give "
+                            "another folder")
         write_json(folder / RUN_RECORD, record)
         return True
     write_json(folder / RUN_RECORD, record)

@@ -1,11 +1,11 @@
 """scara_gym: the ARGESIM C11 SCARA robot benchmark as an exact model and Gymnasium environments.
 
-Layout: :mod:`scara_gym.model` (the physics: numpy + numba), :mod:`scara_gym.envs` (the
+Layout: `scara_gym.model` (the physics: numpy + numba), `scara_gym.envs` (the
 task object, the compiled environment step, the single and vector environments, the
-renderer, the vector-env factory), :mod:`scara_gym.wrappers` (what sits between an agent and
-the env: the residual set-point and the model-predictive shield), :mod:`scara_gym.benchmark`
+renderer, the vector-env factory), `scara_gym.wrappers` (what sits between an agent and
+the env: the residual set-point and the model-predictive shield), `scara_gym.benchmark`
 (the seed paper's tasks, the scipy reference, ``scara-c11 reproduce`` and ``bench``),
-:mod:`scara_gym.integrations` (stable-baselines3) and :mod:`scara_gym.registration` (the ids).
+`scara_gym.integrations` (stable-baselines3) and `scara_gym.registration` (the ids).
 Nothing here imports the ``agents`` package.
 """
 

@@ -1,7 +1,8 @@
 """The install extras (pyproject.toml's optional-dependencies) and the one-line error a missing
-one gives: the library's optional imports go through :func:`require`, whose ImportError names
+one gives: the library's optional imports go through `require`, whose ImportError names
 the extra to install, and ``scara-agents`` turns any missing optional module into that line and
-exit status 2 (:func:`missing_extra_message`)."""
+exit status 2 (`missing_extra_message`).
+"""
 
 from __future__ import annotations
 

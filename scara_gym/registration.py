@@ -1,5 +1,6 @@
 """The registered Gymnasium ids: each id's constructor arguments (its card's version history),
-registered with Gymnasium when :mod:`scara_gym` is imported."""
+registered with Gymnasium when `scara_gym` is imported.
+"""
 
 from __future__ import annotations
 

@@ -4,13 +4,13 @@ The offline baseline of the datasets (agents.experiments.datasets): an MLP regre
 dataset's actions on its observations (mean squared error, tanh output in [-1, 1], observations
 standardized with the dataset's mean and spread), trained for a fixed number of Adam steps on
 minibatches drawn with the run's seed, as CORL's ``any_percent_bc`` does with the whole dataset.
-Nothing is tuned on an evaluation: the run keeps its last weights. :class:`BCPolicy` acts with
+Nothing is tuned on an evaluation: the run keeps its last weights. `BCPolicy` acts with
 them.
 
 With ``residual_scale`` the MLP clones in the residual set-point's space of the engineered agents
 (scara_gym.wrappers.residual): its targets are the outputs r the map turns into the recorded
 actions (``ResidualSetpoint.agent_actions``), and a recorded set-point on the target (within
-:data:`ON_TARGET`: the float32 rounding of the recorded observation and action) is r = 0, the
+`ON_TARGET`: the float32 rounding of the recorded observation and action) is r = 0, the
 deadzone's middle. A plain clone cannot succeed here: the 0.001 success band asks its set-point for
 a precision of about 4e-4 action units, and no regression of the whole path gets there. A run folder holds model.pt (weights and normalizer, loaded with weights_only),
 config.json (this Config, the dataset's id and size, the training time) and SHA256SUMS.
@@ -44,6 +44,7 @@ from agents.files import (
     write_json,
 )
 from scara_gym.envs.task import OBSERVATION_LAYOUT
+from scara_gym.model.checks import UserError
 from scara_gym.wrappers import ResidualSetpoint
 
 ON_TARGET = 1e-5
@@ -153,11 +154,11 @@ class BCPolicy:
         record = checked.json("config.json")
         if record.get("algo") != "bc":
             other = " (a torch PPO run: torchppo:DIR)" if record.get("algo") == "torch-ppo" else ""
-            raise ValueError(f"{run_dir}: not a behaviour-cloning run (its config.json says algo "
-                             f"{record.get('algo')!r}){other}")
+            raise UserError(f"{run_dir}: not a behaviour-cloning run (its config.json says algo "
+                            f"{record.get('algo')!r}){other}")
         if env.unwrapped.control_mode != "pd":
-            raise ValueError(f"{run_dir} clones 'pd' mode actions, the environment is in "
-                             f"{env.unwrapped.control_mode!r} mode")
+            raise UserError(f"{run_dir} clones 'pd' mode actions, the environment is in "
+                            f"{env.unwrapped.control_mode!r} mode")
         saved = load_torch(run_dir / "model.pt", data=checked.bytes("model.pt"))
         self.actor = Actor(saved["obs_size"], saved["action_size"], saved["hidden_size"], saved["layers"])
         self.actor.load_state_dict(saved["state_dict"])

@@ -8,6 +8,7 @@ from dataclasses import dataclass
 
 from agents.algorithms.torch_ppo_config import SEED_MAX
 from scara_gym.model import checks
+from scara_gym.model.checks import UserError
 
 
 @dataclass
@@ -28,7 +29,7 @@ class BCConfig:
 
     def __post_init__(self) -> None:
         if not isinstance(self.dataset, str) or not self.dataset:
-            raise ValueError(f"dataset must be a Minari dataset id, got {self.dataset!r}")
+            raise UserError(f"dataset must be a Minari dataset id, got {self.dataset!r}")
         checks.integer("seed", self.seed, 0, SEED_MAX)
         checks.integer("torch_threads", self.torch_threads, 0, None)
         for name in ("hidden_size", "layers", "batch_size", "steps"):

@@ -3,9 +3,9 @@ environment made from the package's own registry, and every episode checked befo
 
 A Minari dataset's ``metadata.json`` names an ``env_spec.entry_point``, which Minari imports and
 calls (``recover_environment()``, and ``minari.load_dataset`` where the metadata holds no
-space): whoever can write a dataset could then run code as its reader. :func:`load` and
-:func:`environment` never do; behaviour cloning (agents.algorithms.bc) and the datasets' replay
-(agents.experiments.datasets) read datasets through them, and :func:`checked_episodes` refuses
+space): whoever can write a dataset could then run code as its reader. `load` and
+`environment` never do; behaviour cloning (agents.algorithms.bc) and the datasets' replay
+(agents.experiments.datasets) read datasets through them, and `checked_episodes` refuses
 values that are not finite or lie outside their spaces.
 """
 
@@ -20,6 +20,7 @@ import numpy as np
 
 from agents.files import verify_digests
 from scara_gym.extras import require
+from scara_gym.model.checks import UserError
 from scara_gym.registration import ENV_IDS
 
 DATASET_FILES = ("data/metadata.json", "data/main_data.hdf5")
@@ -33,21 +34,21 @@ def _environment(name: str, metadata: dict) -> gym.Env:
         spec = json.loads(metadata["env_spec"])
         env_id, entry_point, kwargs = spec["id"], spec["entry_point"], spec.get("kwargs") or {}
     except (KeyError, TypeError, ValueError):
-        raise ValueError(f"dataset {name}: its metadata records no environment (env_spec with id and entry_point); "
-                         "refused") from None
+        raise UserError(f"dataset {name}: its metadata records no environment (env_spec with id and entry_point); "
+                        "refused") from None
     if env_id not in ENV_IDS:
-        raise ValueError(f"dataset {name}: its environment {env_id!r} is not one of the package's {list(ENV_IDS)}; "
-                         "refused, its entry point never imported")
+        raise UserError(f"dataset {name}: its environment {env_id!r} is not one of the package's {list(ENV_IDS)}; "
+                        "refused, its entry point never imported")
     ours = gym.spec(env_id).entry_point
     if entry_point != ours:
-        raise ValueError(f"dataset {name}: its env_spec names entry point {entry_point!r} for {env_id!r}, not the "
-                         f"package's {ours!r}: refused, never imported")
+        raise UserError(f"dataset {name}: its env_spec names entry point {entry_point!r} for {env_id!r}, not the "
+                        f"package's {ours!r}: refused, never imported")
     if not isinstance(kwargs, dict):
-        raise ValueError(f"dataset {name}: its env_spec's kwargs are not a mapping; refused")
+        raise UserError(f"dataset {name}: its env_spec's kwargs are not a mapping; refused")
     try:
         return gym.make(env_id, **kwargs)
     except (TypeError, ValueError) as error:
-        raise ValueError(f"dataset {name}: its environment's arguments are refused ({error})") from None
+        raise UserError(f"dataset {name}: its environment's arguments are refused ({error})") from None
 
 
 def _spaces(name: str, metadata: dict, env: gym.Env) -> tuple:
@@ -63,9 +64,9 @@ def _spaces(name: str, metadata: dict, env: gym.Env) -> tuple:
         try:
             recorded = deserialize_space(metadata[key])
         except Exception as error:  # noqa: BLE001  (any malformed space: refused in one line)
-            raise ValueError(f"dataset {name}: its {key} cannot be read ({type(error).__name__}); refused") from None
+            raise UserError(f"dataset {name}: its {key} cannot be read ({type(error).__name__}); refused") from None
         if recorded != own:
-            raise ValueError(f"dataset {name}: its {key} {recorded} is not its environment's {own}; refused")
+            raise UserError(f"dataset {name}: its {key} {recorded} is not its environment's {own}; refused")
         spaces.append(recorded)
     return tuple(spaces)
 
@@ -73,7 +74,7 @@ def _spaces(name: str, metadata: dict, env: gym.Env) -> tuple:
 def load(name: str):
     """The Minari dataset ``name`` from Minari's data folder, loaded without running any code it
     names: its files checked against its manifest where it has one (the datasets the package
-    builds), its environment made from the package's registry (:func:`_environment`) and its spaces
+    builds), its environment made from the package's registry (`_environment`) and its spaces
     checked against that environment's. FileNotFoundError where it is not there."""
     require("minari")
     import minari
@@ -88,10 +89,10 @@ def load(name: str):
     try:
         metadata = checked.json("data/metadata.json")
     except ValueError:
-        raise ValueError(f"dataset {name}: {folder / 'data' / 'metadata.json'} is not JSON; refused") from None
+        raise UserError(f"dataset {name}: {folder / 'data' / 'metadata.json'} is not JSON; refused") from None
     if not isinstance(metadata, dict) or metadata.get("data_format") != "hdf5":
-        raise ValueError(f"dataset {name}: not an HDF5 dataset (data_format "
-                         f"{metadata.get('data_format') if isinstance(metadata, dict) else None!r}); refused")
+        raise UserError(f"dataset {name}: not an HDF5 dataset (data_format "
+                        f"{metadata.get('data_format') if isinstance(metadata, dict) else None!r}); refused")
     observation_space, action_space = _spaces(name, metadata, _environment(name, metadata))
     try:  # the HDF5 file opened here: a truncated or corrupted one is refused in one line
         import h5py
@@ -110,7 +111,7 @@ def _unreadable(name: str, folder: Path, error: Exception) -> ValueError:
 
 
 def checked_episodes(dataset, env: gym.Env):
-    """Every episode of a MinariDataset, each checked against ``env``'s spaces (:func:`check_episode`);
+    """Every episode of a MinariDataset, each checked against ``env``'s spaces (`check_episode`);
     a data file that cannot be read is refused in one line naming the dataset."""
     iterator = dataset.iterate_episodes()
     while True:
@@ -131,7 +132,7 @@ def environment(dataset) -> gym.Env:
     metadata = dataset.storage.metadata
     env = _environment(dataset.id, metadata)
     if env.observation_space != dataset.observation_space or env.action_space != dataset.action_space:
-        raise ValueError(f"dataset {dataset.id}: its spaces are not its environment's ({env.spec.id}); refused")
+        raise UserError(f"dataset {dataset.id}: its spaces are not its environment's ({env.spec.id}); refused")
     return env
 
 
@@ -146,7 +147,7 @@ def check_episode(name: str, episode, observation_space, action_space) -> None:
                              (f"a value outside the {field[:-1]} space {_bounds(space)}", outside)):
             if bad.any():
                 step = int(np.argwhere(bad)[0][0])
-                raise ValueError(f"dataset {name}, episode {episode.id}: {field} hold {problem} (step {step}); refused")
+                raise UserError(f"dataset {name}, episode {episode.id}: {field} hold {problem} (step {step}); refused")
 
 
 def _bounds(space) -> str:

@@ -7,7 +7,7 @@ the agent, Adam, the loss and its gradient written out (small networks on a CPU 
 the count of tensor operations: autograd's graph and torch.optim's bookkeeping cost more
 than the arithmetic, and tests hold both to torch's), the rollout and the update. The research
 add-ons (reference resets, demonstrations, target replay, the shield) are hooks beside it
-(:mod:`agents.algorithms.torch_ppo_hooks`).
+(`agents.algorithms.torch_ppo_hooks`).
 
     scara-agents torch-ppo --total-timesteps 2000000 --out runs/torch_ppo
     scara-agents torch-ppo --device cuda --num-envs 4096 --num-steps 32 --out runs/torch_ppo_gpu
@@ -48,6 +48,7 @@ from agents.files import (
 )
 from scara_gym.benchmark.protocol import SENSOR_NOISE
 from scara_gym.envs.cuda_vector import load_backend
+from scara_gym.model.checks import UserError
 from scara_gym.wrappers import ResidualSetpoint, Shield
 
 LOG_SQRT_2PI = 0.5 * float(np.log(2 * np.pi))
@@ -273,13 +274,15 @@ def train(config: Config, resume: bool = False, hooks: list[Hook] | None = None,
         try:
             load_backend()
         except (ImportError, RuntimeError) as error:
-            raise ValueError(str(error)) from None
+            raise UserError(str(error)) from None
     with exclusive(out):
         claim_run_folder(out, run_record(config), resume, overwrite)
         return _train(config, resume, hooks)
 
 
 def _train(config: Config, resume: bool, hooks: list[Hook] | None) -> dict:
+    """The loop: per update, a rollout, its advantages, the epochs of minibatch steps, then the
+    logs and a checkpoint (each its own function below, read in that order)."""
     require("torch")
     from torch.utils.tensorboard import SummaryWriter
 
@@ -287,178 +290,250 @@ def _train(config: Config, resume: bool, hooks: list[Hook] | None) -> dict:
     if config.torch_threads:
         torch.set_num_threads(config.torch_threads)
     torch.manual_seed(config.seed)
-    device = torch.device(config.device)
     envs = make_env(config)
     # the CUDA env on numba's simulator returns CPU tensors: train where its tensors are
-    device = getattr(envs.unwrapped, "device", device)
-    obs_size, action_size = envs.single_observation_space.shape[0], envs.single_action_space.shape[0]
+    device = getattr(envs.unwrapped, "device", torch.device(config.device))
     mapping = residual_mapping(config, envs.unwrapped)
     if mapping is not None and device.type != "cpu":
-        raise ValueError("residual_scale: the residual set-point maps numpy observations; train on device='cpu'")
+        raise UserError("residual_scale: the residual set-point maps numpy observations; train on device='cpu'")
     hooks = hooks_for(config, envs, mapping) if hooks is None else list(hooks)
-    agent = Agent(obs_size, action_size, config.hidden_size, config.clip_obs).to(device)
-    names, parameters = zip(*agent.named_parameters())
-    flat = share_one_tensor(parameters)
-    optimizer = Adam([flat], lr=config.learning_rate, eps=1e-5)
-    return_rms = RunningMeanStd().to(device)
-    num_updates = max(1, config.total_timesteps // config.batch_size)
-    start_update, global_step, train_seconds = 1, 0, 0.0
-    checkpoint = out / "checkpoint.pt"
-    if resume and checkpoint.exists():
-        state = load_torch(checkpoint, map_location=device)
-        agent.load_state_dict(state["agent"])
-        optimizer.load_state_dict(state["optimizer"])
-        return_rms.load_state_dict(state["return_rms"])
-        start_update, global_step, train_seconds = state["update"] + 1, state["global_step"], state["train_seconds"]
-    elif config.init_from:
-        load_weights(agent, Path(config.init_from))
-    if start_update == 1 and not config.init_from:
-        with torch.no_grad():
-            agent.actor_logstd.fill_(config.init_log_std)
-        for hook in hooks:
-            hook.before_training(agent)
+    learner = _start(config, envs, device, hooks, resume)
     write_json(out / "config.json", config.to_dict())
     writer = SummaryWriter(str(out / "tb"))
-
-    def minibatch_update(obs, actions, old_logprobs, advantages, returns, with_stats=False):
-        """One Adam step on PPO's loss over a minibatch, with the gradient written out
-        (ppo_gradients): on a CPU these tiny networks are bound by the count of tensor
-        operations, and autograd's graph and the bookkeeping of clip_grad_norm_ and torch.optim
-        cost more than the arithmetic."""
-        by_name, stats = ppo_gradients_(agent, obs, actions, old_logprobs, advantages, returns, config, with_stats)
-        for hook in hooks:
-            extra = hook.loss_gradients(agent, update)
-            if extra is not None:
-                by_name = {name: by_name[name] + extra[name] for name in names}
-        grad = torch.cat([by_name[name].reshape(-1) for name in names])  # laid out as flat
-        grad *= (config.max_grad_norm / (grad.norm() + 1e-6)).clamp(max=1.0)  # clip_grad_norm_'s rule
-        optimizer.step([grad])
-        return stats
-
-    if config.compile:  # fuses the small tensor operations further (LeanRL's recipe); ~30 s once
-        ppo_gradients_ = torch.compile(ppo_gradients)
-    else:
-        ppo_gradients_ = ppo_gradients
-
-    n, steps = config.num_envs, config.num_steps
-    obs_buf = torch.zeros((steps, n, obs_size), device=device)
-    actions_buf = torch.zeros((steps, n, action_size), device=device)
-    logprobs, rewards, dones, values = (torch.zeros((steps, n), device=device) for _ in range(4))
-    discounted = torch.zeros(n, dtype=torch.float64, device=device)  # the return the reward scale tracks
-    episode_return = torch.zeros(n, dtype=torch.float64, device=device)
-    finished = {"return": [], "success": [], "collision": []}
-
-    obs, _ = envs.reset(seed=config.seed + 1000 * (start_update - 1))  # resumed runs start new episodes
+    num_updates = max(1, config.total_timesteps // config.batch_size)
+    rollout = Rollout(config, envs, device, learner.start_update)
     for hook in hooks:
-        obs = hook.on_start(obs)
-    obs = tensor(obs, device)
-    done = torch.zeros(n, device=device)
+        rollout.obs = hook.on_start(rollout.obs)
+    rollout.obs = tensor(rollout.obs, device)
     started = time.perf_counter()
-    progress = Progress(num_updates * config.batch_size, start_step=global_step)
-    for update in range(start_update, num_updates + 1):
+    progress = Progress(num_updates * config.batch_size, start_step=learner.global_step)
+    for update in range(learner.start_update, num_updates + 1):
         if config.anneal_lr:
-            optimizer.lr = config.learning_rate * (1.0 - (update - 1.0) / num_updates)
-        # -- rollout ---------------------------------------------------------------------
-        for step in range(steps):
-            global_step += n
-            with torch.no_grad():
-                agent.obs_rms.update(obs)
-                x = agent.normalize(obs)
-                action, logprob, _, value = agent.act(x)
-            obs_buf[step], actions_buf[step], logprobs[step], values[step], dones[step] = x, action, logprob, value, done
-            clipped = action.clamp(-1.0, 1.0)
-            env_action = clipped if config.device == "cuda" else clipped.numpy()
-            if mapping is not None:  # the agent's r becomes a set-point around the target
-                env_action = mapping(obs.numpy(), env_action)
-            for hook in hooks:
-                env_action = hook.filter_actions(envs.unwrapped, env_action)
-            next_obs, reward, terminated, truncated, info = envs.step(env_action)
-            for hook in hooks:
-                hook.on_step(env_action, next_obs, reward, terminated, truncated, info)
-            reward = tensor(reward, device)
-            terminated, truncated = tensor(terminated, device), tensor(truncated, device)
-            episode_return += reward
-            if config.normalize_reward:
-                discounted = discounted * config.gamma + reward  # zeroed where an episode ends
-                return_rms.update(discounted)
-                reward = reward / torch.sqrt(return_rms.var + 1e-8)
-            reward = reward.to(torch.float32)
-            if bool(truncated.any()):  # bootstrap a time limit with the value of the final observation
-                final = tensor(info["final_obs"], device)
-                with torch.no_grad():
-                    final_value = agent.value(agent.normalize(final))
-                reward = torch.where(truncated & ~terminated, reward + config.gamma * final_value, reward)
-            rewards[step] = reward
-            ended = terminated | truncated
-            if bool(ended.any()):
-                rows = ended.nonzero().squeeze(-1)
-                finished["return"] += episode_return[rows].tolist()
-                finished["success"] += tensor(info["is_success"], device)[rows].tolist()
-                finished["collision"] += (tensor(info["collisions"], device)[rows] > 0).tolist()
-                episode_return[rows] = 0.0
-                discounted[rows] = 0.0
-                for hook in hooks:
-                    next_obs = hook.on_episodes_end(next_obs, rows.tolist(), info)
-            obs, done = tensor(next_obs, device), ended.to(torch.float32)
-
-        # -- advantages (GAE) ------------------------------------------------------------
-        with torch.no_grad():
-            next_value = agent.value(agent.normalize(obs))
-            advantages = torch.zeros_like(rewards)
-            last = torch.zeros(n, device=device)
-            for t in reversed(range(steps)):
-                next_nonterminal = 1.0 - (done if t == steps - 1 else dones[t + 1])
-                following = next_value if t == steps - 1 else values[t + 1]
-                delta = rewards[t] + config.gamma * following * next_nonterminal - values[t]
-                last = delta + config.gamma * config.gae_lambda * next_nonterminal * last
-                advantages[t] = last
-            returns = advantages + values
-
-        # -- update ----------------------------------------------------------------------
-        b_obs, b_actions = obs_buf.reshape(-1, obs_size), actions_buf.reshape(-1, action_size)
-        b_logprobs, b_advantages = logprobs.reshape(-1), advantages.reshape(-1)
-        b_returns = returns.reshape(-1)
-        clip_fractions = []  # the losses and clip fractions logged are the last epoch's
-        for epoch in range(config.update_epochs):
-            order = torch.randperm(config.batch_size, device=device)
-            last_epoch = epoch == config.update_epochs - 1
-            for begin in range(0, config.batch_size, config.minibatch_size):
-                mb = order[begin:begin + config.minibatch_size]
-                stats = minibatch_update(b_obs[mb], b_actions[mb], b_logprobs[mb], b_advantages[mb], b_returns[mb],
-                                         with_stats=last_epoch)
-                if last_epoch:
-                    policy_loss, value_loss, clip_fraction = stats
-                    clip_fractions.append(clip_fraction)
-
-        # -- logs and checkpoints ------------------------------------------------------------
-        elapsed = train_seconds + time.perf_counter() - started
-        writer.add_scalar("charts/steps_per_second", (global_step - (start_update - 1) * config.batch_size)
-                          / max(time.perf_counter() - started, 1e-9), global_step)
-        writer.add_scalar("losses/policy", policy_loss.item(), global_step)
-        writer.add_scalar("losses/value", value_loss.item(), global_step)
-        writer.add_scalar("losses/clip_fraction", torch.stack(clip_fractions).mean().item(), global_step)
-        for hook in hooks:
-            hook.log(writer, global_step, steps * n)
-        if finished["return"]:
-            writer.add_scalar("charts/episode_return", float(np.mean(finished["return"])), global_step)
-            writer.add_scalar("charts/success_rate", float(np.mean(finished["success"])), global_step)
-            writer.add_scalar("charts/collision_rate", float(np.mean(finished["collision"])), global_step)
+            learner.optimizer.lr = config.learning_rate * (1.0 - (update - 1.0) / num_updates)
+        collect(rollout, learner, envs, mapping, hooks, config)
+        advantages, returns = gae(learner.agent, rollout, config)
+        losses = ppo_update(learner, rollout, advantages, returns, hooks, update, config)
+        elapsed = learner.train_seconds + time.perf_counter() - started
+        _log(writer, learner, rollout, losses, hooks, config, started)
         if update % config.checkpoint_every == 0 or update == num_updates:
-            save(agent, out)
-            save_torch({"agent": agent.state_dict(), "optimizer": optimizer.state_dict(),
-                        "return_rms": return_rms.state_dict(), "update": update, "global_step": global_step,
-                        "train_seconds": elapsed}, checkpoint)
+            save(learner.agent, out)
+            save_torch({"agent": learner.agent.state_dict(), "optimizer": learner.optimizer.state_dict(),
+                        "return_rms": learner.return_rms.state_dict(), "update": update,
+                        "global_step": learner.global_step, "train_seconds": elapsed}, out / "checkpoint.pt")
         # the last 100 episodes' return and success, at most every 10 s and at the end
-        progress.report(global_step, finished["return"][-100:], finished["success"][-100:],
+        progress.report(learner.global_step, rollout.finished["return"][-100:], rollout.finished["success"][-100:],
                         final=update == num_updates)
     writer.close()
     envs.close()
-    elapsed = train_seconds + time.perf_counter() - started
-    summary = {"global_step": global_step, "train_seconds": elapsed,
-               "steps_per_second": (global_step - (start_update - 1) * config.batch_size)
+    return _finish(config, learner, started)
+
+
+class Learner:
+    """What training changes and a checkpoint keeps: the agent, Adam on its one flat parameter
+    tensor, the return's running scale, and the count of updates, steps and seconds so far."""
+
+    def __init__(self, config: Config, obs_size: int, action_size: int, device) -> None:
+        self.agent = Agent(obs_size, action_size, config.hidden_size, config.clip_obs).to(device)
+        self.names, parameters = zip(*self.agent.named_parameters())
+        self.optimizer = Adam([share_one_tensor(parameters)], lr=config.learning_rate, eps=1e-5)
+        self.return_rms = RunningMeanStd().to(device)
+        self.start_update, self.global_step, self.train_seconds = 1, 0, 0.0
+        # the minibatch gradient, compiled on request (fuses the small tensor operations further,
+        # LeanRL's recipe; ~30 s once)
+        self.gradients = torch.compile(ppo_gradients) if config.compile else ppo_gradients
+
+
+def _start(config: Config, envs, device, hooks: list[Hook], resume: bool) -> Learner:
+    """A new learner, from the run's checkpoint (resume), a finished run's weights (init_from)
+    or its initialization and the hooks' ``before_training``."""
+    obs_size, action_size = envs.single_observation_space.shape[0], envs.single_action_space.shape[0]
+    learner = Learner(config, obs_size, action_size, device)
+    checkpoint = Path(config.out) / "checkpoint.pt"
+    if resume and checkpoint.exists():
+        state = load_torch(checkpoint, map_location=device)
+        learner.agent.load_state_dict(state["agent"])
+        learner.optimizer.load_state_dict(state["optimizer"])
+        learner.return_rms.load_state_dict(state["return_rms"])
+        learner.start_update = state["update"] + 1
+        learner.global_step, learner.train_seconds = state["global_step"], state["train_seconds"]
+    elif config.init_from:
+        load_weights(learner.agent, Path(config.init_from))
+    if learner.start_update == 1 and not config.init_from:
+        with torch.no_grad():
+            learner.agent.actor_logstd.fill_(config.init_log_std)
+        for hook in hooks:
+            hook.before_training(learner.agent)
+    return learner
+
+
+class Rollout:
+    """The rollout's buffers (num_steps x num_envs) and what carries over from one rollout to
+    the next: the last observation and done flags, the running returns and the finished
+    episodes' outcomes."""
+
+    def __init__(self, config: Config, envs, device, start_update: int) -> None:
+        n, steps = config.num_envs, config.num_steps
+        obs_size, action_size = envs.single_observation_space.shape[0], envs.single_action_space.shape[0]
+        self.device = device
+        self.obs_buf = torch.zeros((steps, n, obs_size), device=device)
+        self.actions = torch.zeros((steps, n, action_size), device=device)
+        self.logprobs, self.rewards, self.dones, self.values = (torch.zeros((steps, n), device=device)
+                                                                for _ in range(4))
+        self.discounted = torch.zeros(n, dtype=torch.float64, device=device)  # the return the reward scale tracks
+        self.episode_return = torch.zeros(n, dtype=torch.float64, device=device)
+        self.finished = {"return": [], "success": [], "collision": []}
+        self.obs, _ = envs.reset(seed=config.seed + 1000 * (start_update - 1))  # resumed runs start new episodes
+        self.done = torch.zeros(n, device=device)
+
+
+def collect(rollout: Rollout, learner: Learner, envs, mapping, hooks: list[Hook], config: Config) -> None:
+    """One rollout: num_steps steps of every env with the agent's sampled actions (clipped,
+    mapped through the residual set-point, filtered by the hooks), into ``rollout``'s buffers."""
+    agent, device = learner.agent, rollout.device
+    for step in range(config.num_steps):
+        learner.global_step += config.num_envs
+        with torch.no_grad():
+            agent.obs_rms.update(rollout.obs)
+            x = agent.normalize(rollout.obs)
+            action, logprob, _, value = agent.act(x)
+        rollout.obs_buf[step], rollout.actions[step], rollout.logprobs[step] = x, action, logprob
+        rollout.values[step], rollout.dones[step] = value, rollout.done
+        clipped = action.clamp(-1.0, 1.0)
+        env_action = clipped if config.device == "cuda" else clipped.numpy()
+        if mapping is not None:  # the agent's r becomes a set-point around the target
+            env_action = mapping(rollout.obs.numpy(), env_action)
+        for hook in hooks:
+            env_action = hook.filter_actions(envs.unwrapped, env_action)
+        next_obs, reward, terminated, truncated, info = envs.step(env_action)
+        for hook in hooks:
+            hook.on_step(env_action, next_obs, reward, terminated, truncated, info)
+        reward = tensor(reward, device)
+        terminated, truncated = tensor(terminated, device), tensor(truncated, device)
+        rollout.rewards[step] = _scaled_reward(rollout, learner, reward, terminated, truncated, info, config)
+        ended = terminated | truncated
+        if bool(ended.any()):
+            next_obs = _episodes_end(rollout, ended, next_obs, info, hooks)
+        rollout.obs, rollout.done = tensor(next_obs, device), ended.to(torch.float32)
+
+
+def _scaled_reward(rollout: Rollout, learner: Learner, reward, terminated, truncated, info, config: Config):
+    """A step's reward as PPO learns it: summed into the episodes' returns, scaled by the running
+    std of the discounted return (normalize_reward), and a time limit bootstrapped with the value
+    of the final observation."""
+    rollout.episode_return += reward
+    if config.normalize_reward:
+        rollout.discounted = rollout.discounted * config.gamma + reward  # zeroed where an episode ends
+        learner.return_rms.update(rollout.discounted)
+        reward = reward / torch.sqrt(learner.return_rms.var + 1e-8)
+    reward = reward.to(torch.float32)
+    if bool(truncated.any()):
+        final = tensor(info["final_obs"], rollout.device)
+        with torch.no_grad():
+            final_value = learner.agent.value(learner.agent.normalize(final))
+        reward = torch.where(truncated & ~terminated, reward + config.gamma * final_value, reward)
+    return reward
+
+
+def _episodes_end(rollout: Rollout, ended, next_obs, info, hooks: list[Hook]):
+    """The ended episodes' outcomes kept and their running returns zeroed; the hooks may change
+    the next episodes' first observations (returned)."""
+    rows = ended.nonzero().squeeze(-1)
+    rollout.finished["return"] += rollout.episode_return[rows].tolist()
+    rollout.finished["success"] += tensor(info["is_success"], rollout.device)[rows].tolist()
+    rollout.finished["collision"] += (tensor(info["collisions"], rollout.device)[rows] > 0).tolist()
+    rollout.episode_return[rows] = 0.0
+    rollout.discounted[rows] = 0.0
+    for hook in hooks:
+        next_obs = hook.on_episodes_end(next_obs, rows.tolist(), info)
+    return next_obs
+
+
+@torch.no_grad()
+def gae(agent: Agent, rollout: Rollout, config: Config) -> tuple[torch.Tensor, torch.Tensor]:
+    """(advantages, returns) of a rollout: generalized advantage estimation, bootstrapped with the
+    value of the observation after its last step."""
+    steps, values, dones = config.num_steps, rollout.values, rollout.dones
+    next_value = agent.value(agent.normalize(rollout.obs))
+    advantages = torch.zeros_like(rollout.rewards)
+    last = torch.zeros(config.num_envs, device=rollout.device)
+    for t in reversed(range(steps)):
+        next_nonterminal = 1.0 - (rollout.done if t == steps - 1 else dones[t + 1])
+        following = next_value if t == steps - 1 else values[t + 1]
+        delta = rollout.rewards[t] + config.gamma * following * next_nonterminal - values[t]
+        last = delta + config.gamma * config.gae_lambda * next_nonterminal * last
+        advantages[t] = last
+    return advantages, advantages + values
+
+
+def ppo_update(learner: Learner, rollout: Rollout, advantages, returns, hooks: list[Hook], update: int,
+               config: Config) -> tuple:
+    """update_epochs passes over the rollout in shuffled minibatches, one Adam step each; returns
+    the last epoch's (policy loss, value loss, clip fractions), what the logs show."""
+    obs_size, action_size = rollout.obs_buf.shape[-1], rollout.actions.shape[-1]
+    b_obs, b_actions = rollout.obs_buf.reshape(-1, obs_size), rollout.actions.reshape(-1, action_size)
+    b_logprobs, b_advantages = rollout.logprobs.reshape(-1), advantages.reshape(-1)
+    b_returns = returns.reshape(-1)
+    clip_fractions = []  # the losses and clip fractions logged are the last epoch's
+    for epoch in range(config.update_epochs):
+        order = torch.randperm(config.batch_size, device=rollout.device)
+        last_epoch = epoch == config.update_epochs - 1
+        for begin in range(0, config.batch_size, config.minibatch_size):
+            mb = order[begin:begin + config.minibatch_size]
+            stats = minibatch_step(learner, (b_obs[mb], b_actions[mb], b_logprobs[mb], b_advantages[mb],
+                                             b_returns[mb]), hooks, update, config, with_stats=last_epoch)
+            if last_epoch:
+                policy_loss, value_loss, clip_fraction = stats
+                clip_fractions.append(clip_fraction)
+    return policy_loss, value_loss, clip_fractions
+
+
+def minibatch_step(learner: Learner, minibatch: tuple, hooks: list[Hook], update: int, config: Config,
+                   with_stats: bool = False):
+    """One Adam step on PPO's loss over a minibatch (obs, actions, old log probs, advantages,
+    returns), with the gradient written out (ppo_gradients): on a CPU these tiny networks are
+    bound by the count of tensor operations, and autograd's graph and the bookkeeping of
+    clip_grad_norm_ and torch.optim cost more than the arithmetic. Returns the minibatch's stats
+    (with_stats) or None."""
+    agent, names = learner.agent, learner.names
+    by_name, stats = learner.gradients(agent, *minibatch, config, with_stats)
+    for hook in hooks:
+        extra = hook.loss_gradients(agent, update)
+        if extra is not None:
+            by_name = {name: by_name[name] + extra[name] for name in names}
+    grad = torch.cat([by_name[name].reshape(-1) for name in names])  # laid out as the flat parameters
+    grad *= (config.max_grad_norm / (grad.norm() + 1e-6)).clamp(max=1.0)  # clip_grad_norm_'s rule
+    learner.optimizer.step([grad])
+    return stats
+
+
+def _log(writer, learner: Learner, rollout: Rollout, losses: tuple, hooks: list[Hook], config: Config,
+         started: float) -> None:
+    """An update's scalars on TensorBoard: speed, losses, the hooks' and the finished episodes'."""
+    global_step = learner.global_step
+    policy_loss, value_loss, clip_fractions = losses
+    writer.add_scalar("charts/steps_per_second", (global_step - (learner.start_update - 1) * config.batch_size)
+                      / max(time.perf_counter() - started, 1e-9), global_step)
+    writer.add_scalar("losses/policy", policy_loss.item(), global_step)
+    writer.add_scalar("losses/value", value_loss.item(), global_step)
+    writer.add_scalar("losses/clip_fraction", torch.stack(clip_fractions).mean().item(), global_step)
+    for hook in hooks:
+        hook.log(writer, global_step, config.num_steps * config.num_envs)
+    finished = rollout.finished
+    if finished["return"]:
+        writer.add_scalar("charts/episode_return", float(np.mean(finished["return"])), global_step)
+        writer.add_scalar("charts/success_rate", float(np.mean(finished["success"])), global_step)
+        writer.add_scalar("charts/collision_rate", float(np.mean(finished["collision"])), global_step)
+
+
+def _finish(config: Config, learner: Learner, started: float) -> dict:
+    """The run's summary, written with its record (config.json, as the SB3 trainer writes it: what
+    the comparison reads) and the digests of its policy files."""
+    out = Path(config.out)
+    elapsed = learner.train_seconds + time.perf_counter() - started
+    summary = {"global_step": learner.global_step, "train_seconds": elapsed,
+               "steps_per_second": (learner.global_step - (learner.start_update - 1) * config.batch_size)
                / max(time.perf_counter() - started, 1e-9)}
     write_json(out / "summary.json", summary)
-    # the run's record, as the SB3 trainer writes it: what the comparison reads
     write_json(out / "config.json", {**config.to_dict(), "algo": "torch-ppo", **summary})
     write_digests(out, POLICY_FILES)
     return summary
@@ -481,8 +556,8 @@ def load_weights(agent: Agent, run_dir: Path) -> None:
     mine = (agent.obs_rms.mean.shape[0], agent.actor_logstd.shape[0], agent.weights[0].shape[-1])
     theirs = (saved["obs_size"], saved["action_size"], saved["hidden_size"])
     if mine != theirs:
-        raise ValueError(f"init_from: {str(run_dir)!r} has (observation, action, hidden) sizes {theirs}, "
-                         f"this run {mine}")
+        raise UserError(f"init_from: {str(run_dir)!r} has (observation, action, hidden) sizes {theirs}, "
+                        f"this run {mine}")
     agent.load_state_dict(saved["state_dict"])  # copies in place: the parameters stay views of one tensor
 
 
@@ -497,8 +572,8 @@ class TorchPPOPolicy:
         run_config = Config.from_dict(checked.json("config.json"))
         unwrapped = env.unwrapped
         if run_config.control_mode != unwrapped.control_mode:
-            raise ValueError(f"{run_dir} was trained in {run_config.control_mode!r} mode, "
-                             f"the environment is in {unwrapped.control_mode!r} mode")
+            raise UserError(f"{run_dir} was trained in {run_config.control_mode!r} mode, "
+                            f"the environment is in {unwrapped.control_mode!r} mode")
         saved = load_torch(run_dir / "model.pt", data=checked.bytes("model.pt"))
         self.agent = Agent(saved["obs_size"], saved["action_size"], saved["hidden_size"], saved["clip_obs"])
         self.agent.load_state_dict(saved["state_dict"])

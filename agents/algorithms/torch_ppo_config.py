@@ -10,6 +10,7 @@ from scara_gym.benchmark.protocol import ENV_ID
 from scara_gym.envs.randomization import PRESETS
 from scara_gym.envs.task import MAX_ROBOTS
 from scara_gym.model import checks
+from scara_gym.model.checks import UserError, UserTypeError
 from scara_gym.registration import ENV_IDS
 
 INF = float("inf")
@@ -78,7 +79,7 @@ class Config:
         if self.randomize_params is not None:
             checks.choice("randomize_params", self.randomize_params, sorted(PRESETS))
         if not isinstance(self.reward_weights, dict):
-            raise TypeError(f"reward_weights must be a dict of name -> number, got {self.reward_weights!r}")
+            raise UserTypeError(f"reward_weights must be a dict of name -> number, got {self.reward_weights!r}")
         for name, value in self.reward_weights.items():
             checks.real(f"reward_weights[{name!r}]", value)
         if self.residual_scale is not None:
@@ -90,8 +91,8 @@ class Config:
                                 ("checkpoint_every", 1, None), ("demo_bc_pretrain", 0, None)):
             checks.integer(name, getattr(self, name), low, high)
         if self.batch_size % self.num_minibatches:
-            raise ValueError(f"num_minibatches must divide the batch num_envs * num_steps = {self.batch_size}, "
-                             f"got {self.num_minibatches}")
+            raise UserError(f"num_minibatches must divide the batch num_envs * num_steps = {self.batch_size}, "
+                            f"got {self.num_minibatches}")
         for name, low, high, low_open in (
                 ("learning_rate", 0.0, 1.0, False), ("gamma", 0.0, 1.0, True), ("gae_lambda", 0.0, 1.0, True),
                 ("clip_coef", 0.0, INF, True), ("ent_coef", 0.0, INF, False), ("vf_coef", 0.0, INF, False),
@@ -101,7 +102,7 @@ class Config:
                 ("target_replay", 0.0, 1.0, False), ("demo_bc", 0.0, INF, False), ("demo_bc_decay", 0.0, 1.0, True)):
             checks.real(name, getattr(self, name), low, high, low_open=low_open)
         if not isinstance(self.out, str) or not self.out:
-            raise ValueError(f"out must be a folder path, got {self.out!r}")
+            raise UserError(f"out must be a folder path, got {self.out!r}")
 
     @property
     def batch_size(self) -> int:
@@ -143,7 +144,7 @@ def parse_reward_weights(text: str) -> dict[str, float]:
         try:
             weights[name.strip()] = float(value)
         except ValueError:
-            raise ValueError(f"reward_weights: expected name=number items separated by commas, got {item!r}") from None
+            raise UserError(f"reward_weights: expected name=number items separated by commas, got {item!r}") from None
     return weights
 
 
@@ -154,5 +155,5 @@ def parse_floats(name: str, text: str, count: int) -> tuple[float, ...]:
     except ValueError:
         values = ()
     if len(values) != count:
-        raise ValueError(f"{name}: expected {count} numbers separated by commas, got {text!r}")
+        raise UserError(f"{name}: expected {count} numbers separated by commas, got {text!r}")
     return values

@@ -1,14 +1,14 @@
 """The single-file PPO's research add-ons, as hooks beside the algorithm.
 
-:func:`agents.algorithms.torch_ppo.train` is plain PPO; it calls each :class:`Hook` at five
+`agents.algorithms.torch_ppo.train` is plain PPO; it calls each `Hook` at five
 points (the first observations, each step's results, episodes that end, the actions sent to the
-environment, the minibatch gradient) and knows nothing of what they do. :func:`hooks_for` builds the hooks a
-:class:`~agents.algorithms.torch_ppo.Config`'s add-on fields ask for:
+environment, the minibatch gradient) and knows nothing of what they do. `hooks_for` builds the hooks a
+`Config`'s add-on fields ask for:
 
 - ``demo_resets``: reference state initialization on the optimal reference's path (DemoResets);
 - ``demo_bc``: behaviour cloning of the optimal reference's steps, DAPG (DemoCloning);
 - ``target_replay``: failed-target replay for drawn targets (TargetReplay);
-- ``shield``: shielded RL behind :class:`scara_gym.wrappers.Shield` (ShieldedActions).
+- ``shield``: shielded RL behind `scara_gym.wrappers.Shield` (ShieldedActions).
 """
 
 from __future__ import annotations
@@ -205,7 +205,7 @@ class TargetReplay(Hook):
 
 
 class ShieldedActions(Hook):
-    """Shielded RL: every robot's action goes through :class:`scara_gym.wrappers.Shield` (its model:
+    """Shielded RL: every robot's action goes through `scara_gym.wrappers.Shield` (its model:
     the nominal parameters) before the environment applies it; the agent's own action is the one
     stored, the shield being part of the environment as the agent sees it. CPU only."""
 

@@ -33,6 +33,7 @@ from agents.files import (
     write_json,
 )
 from agents.policies import run_episode
+from scara_gym.model.checks import UserError
 
 CHECKPOINT = re.compile(r"ppo_(?:vecnormalize_)?(\d+)_steps\.(?:zip|pkl)")
 """the names of the checkpoint files SB3's CheckpointCallback writes for PPO (model, normalizer)"""
@@ -87,7 +88,7 @@ def select_checkpoint(run: Path, out: Path, episodes: int = 5, seed: int = 5000)
     rows = evaluate_checkpoints(run, episodes, seed)
     clean = [r for r in rows if r["success_rate"] == 1.0 and r["collision_rate"] == 0.0]
     if not clean:
-        raise ValueError(f"no checkpoint of {run} succeeded in every episode without a collision")
+        raise UserError(f"no checkpoint of {run} succeeded in every episode without a collision")
     best = min(clean, key=lambda r: r["mean_time"])
     files, kept, _ = checked_checkpoints(run)
     stage(files, kept, best["steps"], out)

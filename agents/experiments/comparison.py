@@ -1,13 +1,13 @@
 """The comparison: learned vs classical vs optimal, every policy in the protocol's conditions.
 
 Every policy runs the same episodes of every condition of the evaluation protocol
-(:mod:`scara_gym.benchmark.protocol`: the C11 episode, perturbed starts, randomized targets,
+(`scara_gym.benchmark.protocol`: the C11 episode, perturbed starts, randomized targets,
 drawn and fixed parameter shifts, sensor noise, actuation delay, a rate limit), on
 the protocol's one id (``protocol.ENV_ID``, the latest), each condition on its own evaluation seeds:
 
 - policies: ``pd`` (the classical baseline); the seed's ``dec`` heuristic in both variants at its
   trigger distance tuned once on the tuning set and at 1.2 times it
-  (:mod:`agents.experiments.tuning`: never re-tuned on a condition it is scored on); ``optimal``
+  (`agents.experiments.tuning`: never re-tuned on a condition it is scored on); ``optimal``
   (the minimum-time replay, "voltage" mode) where the condition keeps the C11 start, target and
   parameters and a solution is shipped (an open-loop replay does not see sensor noise); ``mpc``
   (the nonlinear MPC, agents.policies.mpc, "voltage" mode, its nominal model, with its solve
@@ -21,7 +21,7 @@ the protocol's one id (``protocol.ENV_ID``, the latest), each condition on its o
 Learned runs are aggregated with rliable over their training seeds (agents.experiments.statistics);
 every seed's own figures are in ``per_seed``. Every entry is scored at the C11 band and at the looser
 bands of scara_gym.benchmark.episodes (``success_rate_1e-2``, ``time_iqm_1e-2``, ...; statistics'
-docstring) and, per episode, by a normalized time score (:func:`time_score_reference`): 0 = "pd +
+docstring) and, per episode, by a normalized time score (`time_score_reference`): 0 = "pd +
 shield"'s time in the same episode, 1 = the time of the optimal replay where the condition has it,
 else of the MPC ("mpc", voltage mode), each entry naming which ("time_score_reference"); a
 condition with neither (``include_mpc=False`` outside the optimal's conditions) leaves the score

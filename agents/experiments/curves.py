@@ -1,6 +1,6 @@
 """Robustness curves: success and time to target against a shift's magnitude, per policy.
 
-Each curve scales one parameter (every axis's, for ``axes.*``) by the factors of :data:`CURVES`,
+Each curve scales one parameter (every axis's, for ``axes.*``) by the factors of `CURVES`,
 from starts in the protocol's start region (``scara_gym.benchmark.protocol.shift_condition``, on
 c11-starts' seeds), or scales the sensor noise of "sensor-noise" (``noise_condition``). Every
 point runs the same episodes for every policy; a learned policy runs them with each of its seeds.

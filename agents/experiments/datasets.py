@@ -1,6 +1,6 @@
 """Offline datasets in Minari's format: D4RL-style tiers for the C11 task and for randomized targets.
 
-:data:`DATASETS` names every dataset (``scara/<task>/<tier>-v0``); :func:`build` writes one
+`DATASETS` names every dataset (``scara/<task>/<tier>-v0``); `build` writes one
 through Minari's own API (``minari.create_dataset_from_buffers``) into Minari's local data
 folder (``MINARI_DATASETS_PATH``, else ``~/.minari/datasets``) or ``out``. Nothing needs the
 network.
@@ -12,30 +12,30 @@ network.
 
 | tier | episodes of |
 |---|---|
-| ``expert`` | the best safe policy among :data:`EXPERT_CANDIDATES`, picked on the tuning set (:func:`pick_expert`) |
-| ``medium`` | a learned agent part-way through training: the single-file PPO after :data:`MEDIUM_STEPS` steps |
+| ``expert`` | the best safe policy among `EXPERT_CANDIDATES`, picked on the tuning set (`pick_expert`) |
+| ``medium`` | a learned agent part-way through training: the single-file PPO after `MEDIUM_STEPS` steps |
 | ``random`` | uniformly random actions in [-1, 1] |
 | ``medium-replay`` | every episode that training run collected, in training order (its rollouts, stochastic actions) |
 | ``mixed`` | the expert and random actions, alternating episode by episode |
 
 Every seeded episode keeps its reset seed: its actions replayed in
-the dataset's environment (:func:`environment`) from that seed give its observations, rewards and costs bit
-for bit (:func:`replay`). The medium-replay episodes began at the training env's autoresets,
+the dataset's environment (`environment`) from that seed give its observations, rewards and costs bit
+for bit (`replay`). The medium-replay episodes began at the training env's autoresets,
 which take no seed of their own: they are not seeded. Per step the infos keep the safety cost
 (``info["cost"]``: 1 for a step in which the tip entered the wall), the collision, the success
 and the weighted reward terms (they sum to the reward). Seeds: each dataset draws from its own
 band below the protocol's tuning seeds (``DATASET_SEED``), so no dataset episode is a tuning or
 an evaluation episode. The reference scores (``ref_min_score``: the random actions' mean return,
-``ref_max_score``: the expert's) are measured per task on :data:`REFERENCE_SEED`'s band.
+``ref_max_score``: the expert's) are measured per task on `REFERENCE_SEED`'s band.
 
 Datasets are inside the trust scheme (agents.files): a dataset's metadata names an
 ``env_spec.entry_point``, which Minari imports and calls (``recover_environment()``, and
 ``minari.load_dataset`` where the metadata holds no spaces), so the package never lets it: it
-loads a dataset with :func:`load` and builds its environment with :func:`environment`, from the
+loads a dataset with `load` and builds its environment with `environment`, from the
 package's own registry by the recorded id, refusing in one line a dataset whose entry point is not
 that id's own or whose spaces are not its environment's. A dataset the package builds carries a
 manifest (``SHA256SUMS`` beside ``data/``), checked when it loads; and every episode's
-observations and actions must be finite and inside the environment's spaces (:func:`check_episode`).
+observations and actions must be finite and inside the environment's spaces (`check_episode`).
 """
 
 from __future__ import annotations
@@ -50,6 +50,7 @@ from pathlib import Path
 import gymnasium as gym
 import numpy as np
 
+from agents.algorithms.loaders import load_policy
 from agents.algorithms.offline_data import (  # noqa: F401  (the datasets' safe loading, used here and re-exported)
     DATASET_FILES,
     check_episode,
@@ -58,7 +59,6 @@ from agents.algorithms.offline_data import (  # noqa: F401  (the datasets' safe 
     environment,
     load,
 )
-from agents.experiments.evaluation import make_policy
 from agents.files import write_digests, write_json
 from scara_gym import __version__
 from scara_gym.benchmark.episodes import run_episodes
@@ -66,6 +66,7 @@ from scara_gym.benchmark.protocol import evaluate, tuning
 from scara_gym.envs.task import REWARD_TERMS
 from scara_gym.extras import require
 from scara_gym.model import checks
+from scara_gym.model.checks import UserError
 
 CONTROL_MODE = "pd"
 TASKS = {
@@ -99,7 +100,7 @@ EXPERT_CANDIDATES = {
         f"{prefix}torchppo:{_learned.format(runs='{runs}', name='torch-ppo-residual-random-replay', seed=s)}"
         for prefix in ("", "shield:") for s in range(5)],
 }
-"""task -> the policy specs (agents.experiments.evaluation.make_policy) its expert is picked from:
+"""task -> the policy specs (agents.algorithms.loaders.load_policy) its expert is picked from:
 PD behind the shield, and the published learned runs that do best on the task (alone, and behind
 the shield where they collide); ``{runs}`` is the runs folder"""
 MEDIUM_FIELDS = {
@@ -136,12 +137,12 @@ DATASETS = {s.name: s for s in (DatasetSpec(task, tier, 1000, k) for k, (task, t
 def get_dataset(name: str) -> DatasetSpec:
     """The dataset ``name`` (ValueError listing the names otherwise)."""
     if name not in DATASETS:
-        raise ValueError(f"unknown dataset {name!r}; the datasets are {sorted(DATASETS)}")
+        raise UserError(f"unknown dataset {name!r}; the datasets are {sorted(DATASETS)}")
     return DATASETS[name]
 
 
 def make_env(task: str) -> gym.Env:
-    """The environment of a task's datasets (what :func:`environment` builds again)."""
+    """The environment of a task's datasets (what `environment` builds again)."""
     return gym.make(DATASET_ENV_ID, control_mode=CONTROL_MODE, **TASKS[task])
 
 
@@ -234,7 +235,7 @@ def pick_expert(task: str, runs: Path = RUNS, episodes: int = TUNING_EPISODES) -
     figures = []
     for spec in EXPERT_CANDIDATES[task]:
         spec = spec.format(runs=runs)
-        result = evaluate(condition, lambda env, s=spec: make_policy(s, env), CONTROL_MODE)
+        result = evaluate(condition, lambda env, s=spec: load_policy(s, env), CONTROL_MODE)
         reach = result["reach_time"][result["success"]]
         figures.append({"policy": spec, "success_rate": float(np.mean(result["success"])),
                         "collision_rate": float(np.mean(result["collisions"])),
@@ -311,7 +312,7 @@ def reference_scores(task: str, expert: str) -> tuple[float, float]:
                        REFERENCE_SEED + list(TASKS).index(task) * 10**6 + REFERENCE_EPISODES))
     env = make_env(task)
     low = run_episodes(env, RandomActions(env, seeds[0]), seeds)["return"].mean()
-    high = run_episodes(env, make_policy(expert, env), seeds)["return"].mean()
+    high = run_episodes(env, load_policy(expert, env), seeds)["return"].mean()
     return float(low), float(high)
 
 
@@ -343,15 +344,15 @@ def build(name: str, episodes: int | None = None, out: Path | None = None, runs:
         if spec.tier == "random":
             policy = RandomActions(env, spec.seed)
         elif spec.tier == "expert":
-            policy = make_policy(expert["policy"], env)
+            policy = load_policy(expert["policy"], env)
         elif spec.tier == "mixed":
-            policy = Alternating(make_policy(expert["policy"], env), RandomActions(env, spec.seed))
+            policy = Alternating(load_policy(expert["policy"], env), RandomActions(env, spec.seed))
         else:  # medium, medium-replay: one training run
             folder, rollouts = medium or train_medium(spec.task, Path(work or scratch) / f"{spec.task}-medium")
             record["medium_run"] = {**{k: list(v) if isinstance(v, tuple) else v
                                        for k, v in MEDIUM_FIELDS[spec.task].items()},
                                     "total_timesteps": MEDIUM_STEPS, "seed": 0}
-            policy = make_policy(f"torchppo:{folder}", env)
+            policy = load_policy(f"torchppo:{folder}", env)
         record["behaviour"] = "torch-ppo rollouts (stochastic)" if spec.tier == "medium-replay" else policy.name
         buffers = (rollouts[:count] if episodes is not None else rollouts) if spec.tier == "medium-replay" \
             else episode_buffers(env, policy, seeds)
@@ -370,7 +371,7 @@ def build(name: str, episodes: int | None = None, out: Path | None = None, runs:
 def _refuse_existing(name: str) -> None:
     final = datasets_root() / name
     if final.exists():
-        raise ValueError(f"dataset {name} exists already in {datasets_root()}; remove {final} to build it again")
+        raise UserError(f"dataset {name} exists already in {datasets_root()}; remove {final} to build it again")
 
 
 def _create_atomically(name: str, arguments: dict):
@@ -403,7 +404,7 @@ def _create_atomically(name: str, arguments: dict):
 
 def replay(dataset, episodes: int | None = None) -> int:
     """Replay the seeded episodes of a MinariDataset: each one's actions in its environment
-    (:func:`environment`, from the package's registry) from its recorded seed; AssertionError at
+    (`environment`, from the package's registry) from its recorded seed; AssertionError at
     the first observation, reward, termination or cost that differs in any bit, ValueError at an
     episode with values that are not finite or outside their spaces. Returns how many were replayed."""
     env = environment(dataset)

@@ -1,13 +1,8 @@
 """The one evaluation engine: policies from their specs, their episodes as per-episode arrays,
 learned runs' evaluations cached, and the plain evaluation table of ``scara-agents evaluate``.
 
-Policy specs: ``pd``; ``dec-continue[:d]`` and ``dec-restart[:d]`` (the seed's heuristic with
-trigger distance d [m]); ``ppo:NAME`` (a shipped model, e.g. ``ppo_pd``) or ``ppo:DIR``;
-``sb3:DIR`` (any SB3 run: PPO, SAC, TD3); ``torchppo:DIR`` (a run of the single-file PPO);
-``bc:DIR`` (a behaviour-cloning run, agents.algorithms.bc);
-``optimal`` (the minimum-time reference, "voltage" mode, best on the exact ids); ``mpc`` (the
-nonlinear MPC with its defaults, "voltage" mode; agents.policies.mpc); ``shield:SPEC``
-(the policy of SPEC behind scara_gym.wrappers.Shield, e.g. ``shield:pd``).
+Policies come from their specs (``pd``, ``shield:pd``, ``torchppo:DIR``, a bare run folder, ...)
+by agents.algorithms.loaders.load_policy, the one table from a spec's kind to its loader.
 """
 
 from __future__ import annotations
@@ -20,63 +15,23 @@ from pathlib import Path
 
 import numpy as np
 
-from agents.algorithms.sb3.policy import PPOPolicy, SB3Policy
+from agents.algorithms.loaders import load_policy, run_spec
 from agents.experiments.runs import is_finished
-from agents.files import POLICY_FILES, json_record, load_arrays, save_arrays
-from agents.policies import DecHeuristic, PDPolicy, mpc as mpc_module
+from agents.files import POLICY_FILES, load_arrays, save_arrays
+from agents.policies import mpc as mpc_module
 from agents.policies.mpc import MPCConfig, MPCPolicy, solve_time_summary
-from agents.policies.optimal import OptimalPolicy
 from scara_gym import __version__
 from scara_gym.benchmark.episodes import BAND_NAMES, band_keys
 from scara_gym.benchmark.protocol import ENV_ID, Condition, evaluate as evaluate_condition, get_condition
 from scara_gym.model import symbolic as symbolic_module
-from scara_gym.wrappers import Shield
+from scara_gym.model.checks import UserError
 
 SHIELD_KEY = b"scara_gym.wrappers.Shield with a committed backup, 3 steps at rest, a flushed line, defaults"
 """what a shielded evaluation's cache key says of the shield (changed with the shield's rules)"""
-POLICY_SPECS = ("pd, dec-continue[:d], dec-restart[:d], optimal, mpc, ppo:NAME_OR_DIR, sb3:RUN_DIR, torchppo:RUN_DIR, "
-                "bc:RUN_DIR, shield:SPEC")
 
 
-def make_policy(spec: str, env):
-    """The policy of a spec (module docstring) for ``env``."""
-    kind, _, arg = spec.partition(":")
-    if kind == "shield":
-        if not arg:
-            raise ValueError("shielded policies are given as shield:SPEC, e.g. shield:pd or shield:torchppo:RUN_DIR")
-        return Shield(env, make_policy(arg, env))
-    if kind == "pd":
-        return PDPolicy(env)
-    if kind in ("dec-continue", "dec-restart"):
-        try:
-            distance = float(arg) if arg else 0.06
-        except ValueError:
-            raise ValueError(f"{kind}:d takes a trigger distance d in metres, got {arg!r}") from None
-        return DecHeuristic(env, variant=kind.split("-")[1], critical_distance=distance)
-    if kind in ("ppo", "sb3", "torchppo") and not arg:
-        raise ValueError(f"{kind} policies are given as {kind}:" + ("NAME (shipped) or ppo:MODEL_DIR" if kind == "ppo"
-                                                                    else "RUN_DIR"))
-    if kind == "ppo":
-        return PPOPolicy(env, arg)
-    if kind == "sb3":
-        return SB3Policy(env, arg)
-    if kind == "torchppo":
-        from agents.algorithms.torch_ppo import TorchPPOPolicy
-
-        return TorchPPOPolicy(env, arg)
-    if kind == "bc":
-        if not arg:
-            raise ValueError("bc policies are given as bc:RUN_DIR")
-        from agents.algorithms.bc import BCPolicy
-
-        return BCPolicy(env, arg)
-    if kind == "optimal":
-        return OptimalPolicy(env)
-    if kind == "mpc":
-        if arg:
-            raise ValueError("the MPC is given as mpc (its defaults; agents.policies.mpc.MPCConfig sets the rest)")
-        return MPCPolicy(env)
-    raise ValueError(f"unknown policy {spec!r}; use {POLICY_SPECS}")
+make_policy = load_policy
+"""the policy of a spec for an env: agents.algorithms.loaders.load_policy (this name kept for its callers)"""
 
 
 TASK_KWARGS = ("goal_tolerance",)
@@ -106,7 +61,7 @@ def learned_episodes(run_dir: Path, condition: Condition, mode: str, episodes: i
     kept there)."""
 
     def run() -> dict:
-        result = evaluate_condition(condition, lambda env: learned_policy(env, run_dir, shield), mode, episodes)
+        result = evaluate_condition(condition, lambda env: load_policy(run_spec(run_dir, shield), env), mode, episodes)
         result.pop("condition")
         return result
 
@@ -153,7 +108,7 @@ def entry_problem(arrays: dict[str, np.ndarray]) -> str | None:
 def _kept(path: Path, run) -> dict:
     """The evaluation kept at ``path``, else ``run()``'s, kept there whole or not at all (a
     stopped comparison leaves no half entry). An entry that is not one this package kept
-    (truncated, keys missing, text or values that are not finite: :func:`entry_problem`) is
+    (truncated, keys missing, text or values that are not finite: `entry_problem`) is
     evaluated again and replaced, with a line on stderr saying why."""
     if path.exists():
         try:
@@ -237,23 +192,6 @@ def _from_arrays(arrays: dict[str, np.ndarray]) -> dict:
     return result
 
 
-def learned_policy(env, run_dir: Path, shield: bool = False):
-    """The policy of a finished run: SB3's (model.zip), the behaviour cloning's (agents.algorithms.bc)
-    or the torch PPO's (model.pt); with
-    ``shield``, behind scara_gym.wrappers.Shield (its model has the nominal parameters)."""
-    if (Path(run_dir) / "model.zip").exists():
-        policy = SB3Policy(env, run_dir)
-    elif json_record(Path(run_dir) / "config.json").get("algo") == "bc":
-        from agents.algorithms.bc import BCPolicy
-
-        policy = BCPolicy(env, run_dir)
-    else:
-        from agents.algorithms.torch_ppo import TorchPPOPolicy
-
-        policy = TorchPPOPolicy(env, run_dir)
-    return Shield(env, policy) if shield else policy
-
-
 def learned_runs(runs_root: Path) -> dict[tuple[str, str], list[Path]]:
     """(algorithm, control mode) -> finished run folders, seed order, under
     ``RUNS/TRAINED_ON/MODE/NAME/seedN``. Every run is scored on the protocol's id whatever it was
@@ -269,8 +207,8 @@ def learned_runs(runs_root: Path) -> dict[tuple[str, str], list[Path]]:
     groups = {}
     for key, runs in by_id.items():
         if len(runs) > 1 and ENV_ID not in runs:
-            raise ValueError(f"{runs_root}: the runs of {key[0]} ({key[1]}) were trained on {sorted(runs)}; keep "
-                             f"one id's, or train them on {ENV_ID}")
+            raise UserError(f"{runs_root}: the runs of {key[0]} ({key[1]}) were trained on {sorted(runs)}; keep "
+                            f"one id's, or train them on {ENV_ID}")
         groups[key] = sorted(runs.get(ENV_ID) or next(iter(runs.values())),
                              key=lambda p: int(p.name.removeprefix("seed")))
     return groups

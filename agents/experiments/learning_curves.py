@@ -2,7 +2,7 @@
 
 A run tagged "learning-curve" (agents.experiments.registry) trains on the draws of one protocol
 condition (its ``trained_on``) to a large budget and keeps a checkpoint every 250k steps
-(ppo.yml's curve blocks). :func:`learning_curve` scores the checkpoints at doubling budgets
+(ppo.yml's curve blocks). `learning_curve` scores the checkpoints at doubling budgets
 (250k, 500k, 1M, ... and the last one) on that condition's *tuning* episodes
 (scara_gym.benchmark.protocol.tuning): the budget a published row is trained for is read off
 this curve, so it is chosen on tuning episodes and never on the evaluation it is scored on.
@@ -28,6 +28,7 @@ from agents.experiments.statistics import time_scores
 from agents.files import json_record, write_json
 from scara_gym.benchmark.episodes import BAND_NAMES, band_keys
 from scara_gym.benchmark.protocol import ENV_ID, evaluate, tuning
+from scara_gym.model.checks import UserError
 
 FIRST_BUDGET = 250_000
 """the curve's first budget (steps); the others double it, and the run's last checkpoint closes it"""
@@ -80,14 +81,14 @@ def plateau(points: list[dict], budgets_: list[int]) -> dict:
 def learning_curve(name: str, run_dirs: list[Path], episodes: int = 50, out: Path | None = None,
                    verbose: bool = True, first_budget: int = FIRST_BUDGET) -> dict:
     """Score every seed's checkpoints of the registered run ``name`` (folders ``run_dirs``, one per
-    seed) at :func:`budgets` (from ``first_budget``) on ``episodes`` tuning episodes of its ``trained_on`` condition; with
+    seed) at `budgets` (from ``first_budget``) on ``episodes`` tuning episodes of its ``trained_on`` condition; with
     ``out``, write ``NAME.json`` (summary, plateau, raw arrays) and ``NAME.png`` there."""
     run = spec(name)
     if "learning-curve" not in run.tags or run.trained_on is None:
-        raise ValueError(f"{name} is not a learning-curve run (tag 'learning-curve' and a trained_on condition); "
+        raise UserError(f"{name} is not a learning-curve run (tag 'learning-curve' and a trained_on condition); "
                          "those are: " + ", ".join(sorted(n for n, r in _curve_runs().items())))
     if not run_dirs:
-        raise ValueError(f"no run folders of {name} given")
+        raise UserError(f"no run folders of {name} given")
     condition = tuning(run.trained_on, episodes)
     seeds, raw, env_ids = {}, {}, set()
     for run_dir in map(Path, run_dirs):
@@ -110,7 +111,7 @@ def learning_curve(name: str, run_dirs: list[Path], episodes: int = 50, out: Pat
         seeds[str(config["seed"])] = rows
         raw[str(config["seed"])] = arrays
     if len(env_ids) != 1:
-        raise ValueError(f"the run folders of {name} were trained on different ids {sorted(env_ids)}")
+        raise UserError(f"the run folders of {name} were trained on different ids {sorted(env_ids)}")
     common = sorted(set.intersection(*({r["steps"] for r in rows} for rows in seeds.values())))
     mean = [{key: float(np.mean([next(r for r in rows if r["steps"] == b)[key] for rows in seeds.values()]))
              for key in seeds[next(iter(seeds))][0]} for b in common]

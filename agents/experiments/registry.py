@@ -1,8 +1,8 @@
 """The run registry: what every named training run of the project is.
 
-One table, :data:`RUNS`, keyed by the run's name (the folder name under
+One table, `RUNS`, keyed by the run's name (the folder name under
 ``RUNS/ENV_ID/MODE/NAME/seedN``): which trainer it uses, its hyperparameters (a YAML block of
-:mod:`agents.algorithms.sb3.hyperparams`, or the torch PPO ``Config`` fields it changes), the
+`agents.algorithms.sb3.hyperparams`, or the torch PPO ``Config`` fields it changes), the
 run a fine-tune starts from, and tags. Training, the campaign, the comparison, the sweeps and
 the acceptance targets read these entries and their tags; none parses a name. How each
 variant came about, and its pilots, is in ``docs/experiments.md``.
@@ -13,6 +13,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 from scara_gym.benchmark.protocol import CONDITIONS
+from scara_gym.model.checks import UserError
 
 TAGS = {
     "standard": "a standard algorithm on the environment as users get it (its own reward and actions)",
@@ -61,18 +62,18 @@ class RunSpec:
     def __post_init__(self) -> None:
         unknown = sorted(set(self.tags) - set(TAGS))
         if unknown:
-            raise ValueError(f"run {self.name!r}: unknown tags {unknown}; the tags are {sorted(TAGS)}")
+            raise UserError(f"run {self.name!r}: unknown tags {unknown}; the tags are {sorted(TAGS)}")
         if self.trainer not in ("sb3", "torch-ppo", "bc"):
-            raise ValueError(f"run {self.name!r}: trainer must be 'sb3', 'torch-ppo' or 'bc', got {self.trainer!r}")
+            raise UserError(f"run {self.name!r}: trainer must be 'sb3', 'torch-ppo' or 'bc', got {self.trainer!r}")
         if (self.trainer == "bc") != ("offline" in self.tags):
-            raise ValueError(f"run {self.name!r}: the 'bc' trainer and the 'offline' tag go together")
+            raise UserError(f"run {self.name!r}: the 'bc' trainer and the 'offline' tag go together")
         if self.trained_on is not None and self.trained_on not in CONDITIONS:
-            raise ValueError(f"run {self.name!r}: trained_on must be one of the protocol's conditions "
+            raise UserError(f"run {self.name!r}: trained_on must be one of the protocol's conditions "
                              f"{sorted(CONDITIONS)} or None, got {self.trained_on!r}")
         if ("learning-curve" in self.tags) != (self.trained_on is not None):
-            raise ValueError(f"run {self.name!r}: the 'learning-curve' tag and a trained_on condition go together")
+            raise UserError(f"run {self.name!r}: the 'learning-curve' tag and a trained_on condition go together")
         if (self.base is not None) != ("fine-tune" in self.tags):
-            raise ValueError(f"run {self.name!r}: a base run and the 'fine-tune' tag go together")
+            raise UserError(f"run {self.name!r}: a base run and the 'fine-tune' tag go together")
 
 
 RESIDUAL = {"residual_scale": (2.5, 2.5, 0.05), "residual_deadzone": 0.5}
@@ -188,12 +189,12 @@ RUNS = _runs(
 def spec(name: str) -> RunSpec:
     """The registered run ``name``; an unknown name is an error that lists the registered ones."""
     if name not in RUNS:
-        raise ValueError(f"no registered run {name!r}; the registered runs are {sorted(RUNS)}")
+        raise UserError(f"no registered run {name!r}; the registered runs are {sorted(RUNS)}")
     return RUNS[name]
 
 
 def tagged(tag: str) -> tuple[str, ...]:
     """The names of the registered runs that carry ``tag``."""
     if tag not in TAGS:
-        raise ValueError(f"unknown tag {tag!r}; the tags are {sorted(TAGS)}")
+        raise UserError(f"unknown tag {tag!r}; the tags are {sorted(TAGS)}")
     return tuple(name for name, s in RUNS.items() if tag in s.tags)

@@ -1,11 +1,11 @@
 """Training runs on disk: where a registered run lives, its lock, training it, publishing it.
 
 Runs land in ``RUNS/ENV_ID/MODE/NAME/seedN`` (NAME: an entry of
-:data:`agents.experiments.registry.RUNS`). A finished run is skipped; an interrupted one
+`agents.experiments.registry.RUNS`). A finished run is skipped; an interrupted one
 resumes from its snapshot or checkpoint, so a campaign (``scara-agents campaign``) can be
 stopped and started again, across sessions. Each run is locked (``RUN/.lock``) by the process
 training it (agents.files.exclusive, which every trainer takes too), and a worker passes over
-runs that are finished or locked, so that workers started side by side share a list. :func:`publish` copies a finished run with only what evaluating it
+runs that are finished or locked, so that workers started side by side share a list. `publish` copies a finished run with only what evaluating it
 needs (the model, its normalizer, config and evaluation history; no snapshots, checkpoints or
 logs), so that results can be committed (``docs/results/runs``) and outlive the machine that
 trained them.
@@ -37,6 +37,7 @@ from agents.files import (
     write_json,
 )
 from scara_gym.benchmark.protocol import ENV_ID
+from scara_gym.model.checks import UserError
 
 
 def run_dir(runs: Path, env_id: str, control_mode: str, name: str, seed: int) -> Path:
@@ -63,7 +64,7 @@ def publish(run: Path, dest: Path) -> Path:
     published only from a trusted folder (this machine's own run)."""
     run, dest = Path(run), Path(dest)
     if not is_finished(run):
-        raise ValueError(f"{run} is not a finished run (no config.json with model.zip or model.pt)")
+        raise UserError(f"{run} is not a finished run (no config.json with model.zip or model.pt)")
     # read once and checked: what is published is what was checked (pickle: only from a trusted folder)
     check = require_trusted if any((run / name).exists() for name in PICKLE_FILES) else verify_digests
     checked = check(run, wanted=POLICY_FILES)
@@ -104,13 +105,13 @@ def train_run(name: str, out: Path, seed: int, env_id: str = ENV_ID, control_mod
     are registered for their own targets."""
     run = spec(name)
     if randomize_target and run.recipe != "ppo-residual":
-        raise ValueError(f"--randomize-target is for the ppo-residual runs (randomize_target=True); {name} is "
-                         "registered for its own targets (the random-targets runs carry the tag)")
+        raise UserError(f"--randomize-target is for the ppo-residual runs (randomize_target=True); {name} is "
+                        "registered for its own targets (the random-targets runs carry the tag)")
     if run.trainer == "bc":
         from agents.algorithms.bc import train as train_bc
 
         if control_mode != "pd":
-            raise ValueError(f"{name} clones a 'pd' mode dataset; train it with --control-mode pd")
+            raise UserError(f"{name} clones a 'pd' mode dataset; train it with --control-mode pd")
         fields = dict(run.fields) if hyperparams is None else dict(hyperparams)
         if total_timesteps:  # its budget: Adam steps
             fields["steps"] = total_timesteps

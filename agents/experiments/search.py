@@ -3,12 +3,12 @@
     scara-agents search ppo-c11-starts --trials 20 --max-steps 2000000 --out runs/search/ppo-c11-starts
 
 One search per registered SB3 run (agents.experiments.registry): every trial trains the run's
-YAML block with a point of :data:`SPACES` (Optuna's TPE sampler proposes it, through Ray Tune's
+YAML block with a point of `SPACES` (Optuna's TPE sampler proposes it, through Ray Tune's
 ``OptunaSearch``), and at every rung (``grace_steps``, twice that, ... up to ``max_steps``)
 scores the model in training on ``episodes`` episodes of the *tuning set* of the condition the
 run trains on (scara_gym.benchmark.protocol.tuning: never an evaluation seed). ASHA (Ray Tune's
 ``ASHAScheduler``, reduction factor 2) stops the trials in the lower half of a rung. The same
-written rule picks the best trial for every algorithm: the highest :func:`objective` at the
+written rule picks the best trial for every algorithm: the highest `objective` at the
 largest rung it reached, among the trials that reached the largest rung any trial reached.
 
 Writes ``OUT/search.json`` (every trial: its point, its hyperparameters, every rung's figures,
@@ -38,6 +38,7 @@ from agents.files import write_atomic, write_json
 from scara_gym.benchmark.episodes import BAND_NAMES, band_keys
 from scara_gym.benchmark.protocol import ENV_ID, evaluate, tuning
 from scara_gym.extras import require
+from scara_gym.model.checks import UserError
 
 TIME_WEIGHT = 0.01
 """the objective's weight on the IQM time to the C11 band [1/s]: a tie-breaker (at most 0.03)"""
@@ -197,7 +198,7 @@ def run_search(run: str, out: Path, trials: int = 20, max_steps: int = 1_000_000
 
     registered = spec(run)
     if registered.trainer != "sb3" or registered.sb3_algorithm not in SPACES:
-        raise ValueError(f"search takes a registered SB3 run of {sorted(SPACES)}; {run} is not one")
+        raise UserError(f"search takes a registered SB3 run of {sorted(SPACES)}; {run} is not one")
     space = SPACES[registered.sb3_algorithm]
     out = Path(out).resolve()
     base = dict(hyperparams_of(run, env_id, control_mode) if base is None else base)

@@ -5,7 +5,7 @@ An entry scores every band of scara_gym.benchmark.episodes (``BAND_NAMES``): the
 ``success_rate`` and ``time_iqm`` / ``time_ci``; each looser band NAME (1e-2, 5e-2) as
 ``success_rate_NAME`` and ``time_iqm_NAME`` / ``time_ci_NAME`` (the time to the band, the time
 limit where not reached, as for the C11 band); per seed ``success_rate_NAME`` and ``time_mean_NAME``.
-The normalized time score (:func:`time_score_fields`) is added by the comparison, which has the
+The normalized time score (`time_score_fields`) is added by the comparison, which has the
 references' episodes.
 """
 

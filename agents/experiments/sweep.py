@@ -33,9 +33,10 @@ from pathlib import Path
 
 import numpy as np
 
+from agents.algorithms.loaders import load_policy, run_spec
 from agents.algorithms.sb3.hyperparams import check_hyperparams
 from agents.algorithms.torch_ppo_config import Config
-from agents.experiments.evaluation import BAND_KEYS, TASK_KWARGS, learned_policy
+from agents.experiments.evaluation import BAND_KEYS, TASK_KWARGS
 from agents.experiments.registry import spec
 from agents.experiments.report import condition_tables
 from agents.experiments.runs import hyperparams_of, is_finished, publish, run_dir, train_run
@@ -43,6 +44,7 @@ from agents.experiments.statistics import entry
 from agents.files import json_record, save_arrays
 from scara_gym.benchmark.protocol import evaluate, get_condition, tuning
 from scara_gym.extras import require
+from scara_gym.model.checks import UserError
 
 
 def parse_grid(items: list[str]) -> dict[str, list]:
@@ -54,7 +56,7 @@ def parse_grid(items: list[str]) -> dict[str, list]:
     for item in items:
         name, sep, values = item.partition("=")
         if not sep or not name or not values:
-            raise ValueError(f"--grid takes NAME=V1,V2,..., got {item!r}")
+            raise UserError(f"--grid takes NAME=V1,V2,..., got {item!r}")
         grid[name] = [yaml.safe_load(v) for v in values.split(",")]
     return grid
 
@@ -75,13 +77,13 @@ def point_hyperparams(algo: str, env_id: str, control_mode: str, point: dict) ->
     is a name or value that is not a plain word or number (they become folder names: tag)."""
     for name, value in point.items():
         if not PLAIN_NAME.fullmatch(str(name)) or not PLAIN_VALUE.fullmatch(str(value)):
-            raise ValueError(f"--grid: {name}={value!r} is not a plain name and value (letters, digits, "
-                             "'_', '.', '+', '-', not starting with '.'); grid points become folder names")
+            raise UserError(f"--grid: {name}={value!r} is not a plain name and value (letters, digits, "
+                            "'_', '.', '+', '-', not starting with '.'); grid points become folder names")
     hyper = hyperparams_of(algo, env_id, control_mode)
     unknown = sorted(set(point) - set(hyper))
     if unknown:
-        raise ValueError(f"--grid names {unknown} that {algo}'s hyperparameters for {env_id}/{control_mode} do not "
-                         f"have; they are {sorted(hyper)}")
+        raise UserError(f"--grid names {unknown} that {algo}'s hyperparameters for {env_id}/{control_mode} do not "
+                        f"have; they are {sorted(hyper)}")
     merged = {**hyper, **point}
     if spec(algo).trainer == "torch-ppo":  # the values checked too, before any trial starts
         Config.from_dict({**merged, "env_id": env_id, "control_mode": control_mode})
@@ -113,7 +115,7 @@ def train_and_evaluate(algo: str, env_id: str, control_mode: str, seed: int, ove
     result = {"train_seconds": json_record(out / "config.json")["train_seconds"]}
     tuning_set = tuning(condition)  # a sweep chooses: it never sees an evaluation seed
     for prefix, kwargs in (("", task), ("benchmark_", {})) if task else (("", {}),):
-        runs = evaluate(tuning_set, lambda env: learned_policy(env, out), control_mode, episodes, env_id,
+        runs = evaluate(tuning_set, lambda env: load_policy(run_spec(out), env), control_mode, episodes, env_id,
                         env_kwargs=kwargs)
         result.update({prefix + key: runs[key] for key in EPISODE_ARRAYS})
     return result

@@ -1,12 +1,12 @@
-"""Things that act: every policy implements :class:`~agents.policies.base.Policy` (obs in, action out).
+"""Things that act: every policy implements `Policy` (obs in, action out).
 
-- :mod:`~agents.policies.base`: the protocol and the set-point base class;
-- :func:`run_episode`, the one evaluation loop (:mod:`scara_gym.benchmark.episodes`, re-exported here);
-- :mod:`~agents.policies.pd`: :class:`PDPolicy`, the classical baseline;
-- :mod:`~agents.policies.heuristic`: :class:`DecHeuristic`, the seed paper's obstacle rule;
-- :mod:`~agents.policies.optimal`: the minimum-time reference (CasADi, an install extra).
+- `agents.policies.base`: the protocol and the set-point base class;
+- `run_episode`, the one evaluation loop (`scara_gym.benchmark.episodes`, re-exported here);
+- `agents.policies.pd`: `PDPolicy`, the classical baseline;
+- `agents.policies.heuristic`: `DecHeuristic`, the seed paper's obstacle rule;
+- `agents.policies.optimal`: the minimum-time reference (CasADi, an install extra).
 
-Learned policies load with the algorithm that trained them (:mod:`agents.algorithms`).
+Learned policies load with the algorithm that trained them (`agents.algorithms`).
 """
 
 from agents.policies.base import Policy, SetpointPolicy

@@ -2,7 +2,7 @@
 
 A policy is called once per control step with the environment's observation and returns
 its action; ``reset()`` starts an episode; ``name`` labels it in tables. Policies that
-think in set-points (PD, the heuristic) derive from :class:`SetpointPolicy`, which turns a
+think in set-points (PD, the heuristic) derive from `SetpointPolicy`, which turns a
 set-point into the action of either control mode (the task's ``setpoint_action``).
 """
 

@@ -33,6 +33,7 @@ from agents.policies.base import SetpointPolicy
 from scara_gym.benchmark.episodes import run_episode
 from scara_gym.benchmark.protocol import ENV_ID
 from scara_gym.envs import OBSERVATION_LAYOUT
+from scara_gym.model.checks import UserError
 from scara_gym.wrappers.shield import hold_and_climb
 
 Q, RATES, TARGET_ERROR = (OBSERVATION_LAYOUT[name] for name in ("q", "rate", "target_error"))
@@ -46,13 +47,13 @@ class DecHeuristic(SetpointPolicy):
                  dec: float = 0.0, rest_rate: float = 0.05) -> None:
         super().__init__(env)
         if variant not in ("continue", "restart"):
-            raise ValueError(f"variant must be 'continue' or 'restart', got {variant!r}")
+            raise UserError(f"variant must be 'continue' or 'restart', got {variant!r}")
         if not (np.isfinite(critical_distance) and critical_distance > 0):
-            raise ValueError(f"critical_distance must be a finite number > 0 [m], got {critical_distance!r}")
+            raise UserError(f"critical_distance must be a finite number > 0 [m], got {critical_distance!r}")
         if not (np.isfinite(dec) and 0 <= dec <= 1):
-            raise ValueError(f"dec must be in [0, 1], got {dec!r}")
+            raise UserError(f"dec must be in [0, 1], got {dec!r}")
         if not (np.isfinite(rest_rate) and rest_rate > 0):
-            raise ValueError(f"rest_rate must be a finite number > 0 [rad/s], got {rest_rate!r}")
+            raise UserError(f"rest_rate must be a finite number > 0 [rad/s], got {rest_rate!r}")
         self.variant = variant
         self.critical_distance = float(critical_distance)
         self.dec = float(dec)

@@ -1,5 +1,5 @@
 """Nonlinear model-predictive control: a receding-horizon optimal-control problem solved at
-every control step, on the symbolic model (:mod:`scara_gym.model.symbolic`).
+every control step, on the symbolic model (`scara_gym.model.symbolic`).
 
     scara-agents evaluate --policies mpc --control-mode voltage --condition c11-starts
     scara-agents evaluate --policies mpc --control-mode pd --condition c11-starts

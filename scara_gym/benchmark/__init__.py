@@ -1,2 +1,3 @@
 """The seed paper's tasks a-c, the scipy reference, and the ``scara-c11`` command
-(``reproduce``, ``bench``)."""
+(``reproduce``, ``bench``).
+"""

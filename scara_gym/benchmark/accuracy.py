@@ -22,6 +22,7 @@ import numpy as np
 
 from scara_gym import ENV_VERSIONS, LATEST_ENV_ID
 from scara_gym.model import records as R
+from scara_gym.model.checks import UserError
 
 REFERENCE_TOLERANCES = (1e-10, 1e-12)
 # the tolerances under test by default: those of the latest id (Scara-C11-v2)
@@ -91,7 +92,8 @@ def _events(env) -> list[tuple[int, int, float]]:
 
 def _paired_time_errors(events: list, reference: list) -> tuple[float, int]:
     """Largest |t - t_ref| over events paired by (kind, axis) and order, and the number of
-    events without a partner."""
+    events without a partner.
+    """
     worst, unpaired = 0.0, 0
     for key in {e[:2] for e in events} | {e[:2] for e in reference}:
         times = [e[2] for e in events if e[:2] == key]
@@ -108,14 +110,15 @@ def compare_episode(plan: EpisodePlan, rtol: float = DEFAULT_RTOL, atol: float =
     """Run the plan at (rtol, atol, tolerance_weights) and at the reference tolerances (with exact
     switches, unweighted); the worst errors. start_offset [rad, rad, m]: the run under test starts
     that far from the plan's start (the problem's conditioning: with the reference's tolerances,
-    how far the exact solution moves for a start that close)."""
+    how far the exact solution moves for a start that close).
+    """
     from scara_gym.envs.scara_env import ScaraEnv
 
     offset_options = dict(plan.options)
     if start_offset is not None:
         start_offset = np.asarray(start_offset, dtype=float)
         if start_offset.shape != (3,) or not np.all(np.isfinite(start_offset)):
-            raise ValueError(f"start_offset must be 3 finite numbers [rad, rad, m], got {start_offset!r}")
+            raise UserError(f"start_offset must be 3 finite numbers [rad, rad, m], got {start_offset!r}")
         offset_options["start"] = np.asarray(plan.options["start"], dtype=float) + start_offset
     runs = [ScaraEnv(**plan.env_kwargs, rtol=rtol, atol=atol, exact_switches=exact_switches,
                      tolerance_weights=tolerance_weights),

@@ -79,7 +79,8 @@ def _steps_per_second(env, steps: int, seed: int = 0) -> float:
 
 def _interleaved_best(measures: dict, rounds: int) -> dict:
     """Best of `rounds` for each measure, taken in turns: the machine's speed drifts, and
-    measures side by side in every round keep the ratios fair."""
+    measures side by side in every round keep the ratios fair.
+    """
     best = dict.fromkeys(measures, 0.0)
     for _ in range(rounds):
         for label, measure in measures.items():
@@ -121,7 +122,6 @@ def _vector_steps_per_second(venv, steps: int) -> float:
 
 def bench_vector(sizes, steps: int, modes=("voltage", "pd"), env_ids=None) -> list[tuple[str, str, int, float, float]]:
     """(env id, control mode, N, robot-steps/s, CartPole-v1's steps/s) per size, mode and id."""
-
     import gymnasium as gym
 
     import scara_gym
@@ -163,8 +163,8 @@ def bench_cost(env_ids=None, steps: int = 1000, control_mode: str = "pd", rounds
     of a separately compiled timed step, and the bookkeeping: the rest of the compiled step
     (Runge-Kutta stages' arithmetic, error control, reward and observation). Rows: id,
     steps_per_second, total and COST_PARTS [us per step], rhs_per_step, steps_per_step
-    (integration steps, rejected ones included)."""
-
+    (integration steps, rejected ones included).
+    """
     import gymnasium as gym
 
     import scara_gym
@@ -208,7 +208,8 @@ def bench_cost(env_ids=None, steps: int = 1000, control_mode: str = "pd", rounds
 def _compiled_run(env, steps: int) -> dict:
     """bench_cost's compiled passes over one env's seeded actions: the compiled step timed from
     Python (untimed, [s]), then the timed step (its timers [cycles], right-hand sides, integration
-    steps and up to 512 of the visited states)."""
+    steps and up to 512 of the visited states).
+    """
     import numpy as np
 
     from scara_gym.envs.core import N_TIMERS, profile_robot, step_robot
@@ -244,7 +245,8 @@ def _compiled_run(env, steps: int) -> dict:
 
 def fastest_compiled_runs(envs: dict, steps: int, rounds: int) -> dict:
     """_compiled_run over each env (label -> env), the envs in turns for `rounds` rounds: per label the
-    run of the fastest untimed pass (the counts are the same in every pass)."""
+    run of the fastest untimed pass (the counts are the same in every pass).
+    """
     best = {}
     for _ in range(rounds):
         for label, env in envs.items():
@@ -378,7 +380,8 @@ def gpu_available() -> str | None:
 def bench_gpu(sizes=GPU_SIZES, steps: int = 50, env_id: str = "Scara-C11-v1") -> list[dict]:
     """Robot-steps/s of the CUDA vector env (random voltage actions drawn on the GPU) per N, and
     the largest |q| difference to the CPU vector env after `steps` steps of the same actions
-    (on the first 256 robots)."""
+    (on the first 256 robots).
+    """
     import gymnasium as gym
     import numpy as np
     require("torch")
@@ -423,7 +426,8 @@ def bench_warp_bound(control_mode: str = "voltage", n: int = 4096, steps: int = 
     efficiency sum(work) / sum(warp * max work in the warp) over random actions (the first 5
     steps left out), the same with warps formed by sorting the robots on their previous step's
     work, and the mean and largest work per step. Branches inside an integrator step (event
-    search, mode switches) diverge further; a GPU profile sees those, this does not."""
+    search, mode switches) diverge further; a GPU profile sees those, this does not.
+    """
     import gymnasium as gym
     import numpy as np
 
@@ -453,7 +457,8 @@ def bench_warp_bound(control_mode: str = "voltage", n: int = 4096, steps: int = 
 def main(quick: bool = False, stream=None, gpu_only: bool = False) -> str:
     """The bench's report (printed to ``stream`` as it is measured). The older ids are measured on
     purpose beside the latest: the bench builds them from their specs (``gym.make(gym.spec(id))``),
-    which Gymnasium does not call out of date."""
+    which Gymnasium does not call out of date.
+    """
     stream = sys.stdout if stream is None else stream  # at call time: a stream bound at import can be stale
     if gpu_only:
         return gpu_section(quick, stream)

@@ -22,6 +22,7 @@ from __future__ import annotations
 import numpy as np
 
 from scara_gym.envs import OBSERVATION_LAYOUT
+from scara_gym.model.checks import UserError
 from scara_gym.model.records import Q as STATE_Q
 
 Q, CURRENTS = OBSERVATION_LAYOUT["q"], OBSERVATION_LAYOUT["current"]
@@ -40,7 +41,8 @@ BAND_NAMES = (C11_BAND, *BANDS)
 
 def band_keys(name: str) -> tuple[str, str]:
     """The per-episode arrays (success, time to the band) of the band named ``name`` (BAND_NAMES):
-    the C11 band's are the environment's own ``success`` and ``reach_time``."""
+    the C11 band's are the environment's own ``success`` and ``reach_time``.
+    """
     return ("success", "reach_time") if name == C11_BAND else (f"success_{name}", f"reach_time_{name}")
 
 
@@ -53,7 +55,8 @@ def band_times(errors, times, located: float | None = None) -> dict[str, float]:
     """Band name -> time to the band (NaN: not reached) of an episode whose target errors
     max_i |q_i - q^_i| are ``errors`` at the instants ``times`` (the start and every step's end,
     in order); located: the instant of the environment's located C11 success, where the episode
-    has one (a band's time is at most it)."""
+    has one (a band's time is at most it).
+    """
     errors, times = np.asarray(errors, dtype=float), np.asarray(times, dtype=float)
     out = {}
     for name, band in BANDS.items():
@@ -126,11 +129,12 @@ def run_episodes(env, policy, seeds: list[int], options: list[dict | None] | Non
     ``success_NAME`` and ``reach_time_NAME`` (NaN where not reached) for each name of BANDS.
     identical: the episodes draw nothing (fixed start, target and parameters, no noise) and the
     policy is deterministic, so that every episode is the first one: then the first two are run
-    and, where they are the same, the first stands for all (else every episode runs)."""
+    and, where they are the same, the first stands for all (else every episode runs).
+    """
     seeds = [int(s) for s in seeds]
     options = list(options) if options is not None else [None] * len(seeds)
     if len(options) != len(seeds):
-        raise ValueError(f"options must have one entry per seed ({len(seeds)}), got {len(options)}")
+        raise UserError(f"options must have one entry per seed ({len(seeds)}), got {len(options)}")
 
     def run(i: int) -> dict:
         return run_episode(env, policy, seed=seeds[i], options=options[i], record=i < record)

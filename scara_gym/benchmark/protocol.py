@@ -1,9 +1,9 @@
 """The evaluation protocol: named conditions, each a documented distribution with its own seeds.
 
-A :class:`Condition` is what a number in a results table is a claim about: the environment
+A `Condition` is what a number in a results table is a claim about: the environment
 (its id's physics, the task, the sim-to-real options), what is drawn per episode (the start,
 the target, the robot's parameters, the sensor noise) and the evaluation seeds it is drawn
-from. :func:`evaluate` runs any policy on any condition; it is the one way the comparison,
+from. `evaluate` runs any policy on any condition; it is the one way the comparison,
 the datasets and a user's own agent are scored.
 
 | condition | what is drawn per episode (seed band: ``Condition.seed`` + episode) |
@@ -25,9 +25,9 @@ the datasets and a user's own agent are scored.
 Everything else is the C11 task of the protocol's one id, ``ENV_ID`` (the latest id, unless
 given). Seeds: every
 condition draws from its own band of 10^7 seeds from 10^9 on (``Condition.seed``); the
-tuning set (:func:`tuning`) from 10^8 on; training, by the agents' convention, below 10^8
+tuning set (`tuning`) from 10^8 on; training, by the agents' convention, below 10^8
 (``TRAINING_SEED_LIMIT``): no seed that tunes or trains anything is an evaluation seed.
-:func:`noise_condition` and :func:`shift_condition` give the points of the robustness curves
+`noise_condition` and `shift_condition` give the points of the robustness curves
 (sensor noise, a parameter shift, at any magnitude) on the same seeds.
 """
 
@@ -44,6 +44,7 @@ from scara_gym.benchmark.episodes import run_episodes
 from scara_gym.envs.randomization import ParameterRanges, leaf_value
 from scara_gym.envs.task import START_REGION, draw_start
 from scara_gym.model import checks
+from scara_gym.model.checks import UserError, UserTypeError
 from scara_gym.model.params import DEFAULT_PARAMS
 from scara_gym.registration import LATEST_ENV_ID
 
@@ -71,7 +72,8 @@ _axes = DEFAULT_PARAMS.axes
 @dataclass(frozen=True)
 class Condition:
     """One evaluation condition (module table): environment arguments, fixed parameter
-    overrides, whether the start is drawn, the first seed and the default episode count."""
+    overrides, whether the start is drawn, the first seed and the default episode count.
+    """
 
     name: str
     description: str
@@ -83,7 +85,7 @@ class Condition:
     random_starts: bool = False
     """the start drawn from START_OFFSETS around the C11 start, per episode"""
     corners: str | None = None
-    """a preset of :mod:`scara_gym.envs.randomization` whose parameters sit at a corner of its ranges,
+    """a preset of `scara_gym.envs.randomization` whose parameters sit at a corner of its ranges,
     drawn per episode (``corner_params``; set through the reset options)"""
     episodes: int = 100
     """the default number of episodes (1 where nothing is drawn)"""
@@ -99,7 +101,7 @@ class Condition:
         """The condition's environment; kwargs: further arguments (e.g. a run's goal_tolerance)."""
         clash = sorted(set(kwargs) & (set(self.env_kwargs) | {"params", "control_mode"}))
         if clash:
-            raise ValueError(f"the condition {self.name!r} sets {clash} itself")
+            raise UserError(f"the condition {self.name!r} sets {clash} itself")
         return gym.make(env_id, control_mode=control_mode, params=DEFAULT_PARAMS.replace(dict(self.params)),
                         **dict(self.env_kwargs), **kwargs)
 
@@ -114,7 +116,8 @@ class Condition:
 
     def options(self, seed: int) -> dict | None:
         """The reset options of the episode of ``seed``: its drawn start, where the start is drawn,
-        and its corner's parameters, where corners are drawn."""
+        and its corner's parameters, where corners are drawn.
+        """
         options = {}
         if self.random_starts:
             rng = np.random.default_rng((int(seed), _START_STREAM))
@@ -127,7 +130,8 @@ class Condition:
 def corner_params(preset: str, seed: int) -> dict[str, float]:
     """A corner of a preset's ranges (around the C11 parameters): every path at its low or its high
     end, each end drawn with probability 1/2 from ``seed``'s own generator (apart from the start's
-    and the environment's), so that the 2^14 corners of "all" are drawn alike."""
+    and the environment's), so that the 2^14 corners of "all" are drawn alike.
+    """
     rng = np.random.default_rng((int(seed), _CORNER_STREAM))
     ranges = ParameterRanges.preset(preset, DEFAULT_PARAMS).ranges
     return {path: float(bounds[int(end)]) for (path, bounds), end in zip(ranges.items(), rng.integers(0, 2, len(ranges)))}
@@ -174,7 +178,8 @@ FIXED_SHIFTS = ("load-x2", "wall-closer", "current-limits-15", "resistance+20")
 
 def protocol_record(names) -> dict:
     """name -> what a results file records of each condition: its description, arguments, draws
-    and first seed (JSON-ready)."""
+    and first seed (JSON-ready).
+    """
     out = {}
     for name in names:
         c = get_condition(name)
@@ -189,7 +194,7 @@ def get_condition(name: str | Condition) -> Condition:
     if isinstance(name, Condition):
         return name
     if name not in CONDITIONS:
-        raise ValueError(f"unknown condition {name!r}; the protocol's conditions are {sorted(CONDITIONS)}")
+        raise UserError(f"unknown condition {name!r}; the protocol's conditions are {sorted(CONDITIONS)}")
     return CONDITIONS[name]
 
 
@@ -201,7 +206,8 @@ def tuning(name: str, episodes: int | None = None) -> Condition:
         episodes: the tuning set's size (None: the condition's own count).
 
     Returns:
-        A Condition on the seeds 10^8 + the condition's band, for choosing a policy's parameters."""
+        A Condition on the seeds 10^8 + the condition's band, for choosing a policy's parameters.
+    """
     base = get_condition(name)
     if episodes is not None:
         checks.integer("episodes", episodes, 1, SEED_BAND)
@@ -221,7 +227,8 @@ def noise_condition(scale: float) -> Condition:
 
 def shift_condition(path: str, factor: float) -> Condition:
     """The parameter at dotted ``path`` (every axis's for "axes.*.NAME") scaled by ``factor``,
-    from starts in the start region, on c11-starts' seeds (a robustness curve's point)."""
+    from starts in the start region, on c11-starts' seeds (a robustness curve's point).
+    """
     factor = checks.real("factor", factor, 0.0, 100.0)
     paths = [path.replace("*", str(i)) for i in range(len(_axes))] if "*" in path else [path]
     params = {p: factor * leaf_value(DEFAULT_PARAMS, p) for p in paths}
@@ -259,14 +266,15 @@ def evaluate(condition: Condition | str, policy_factory: Callable | None = None,
 
     Returns:
         Per-episode arrays (success, collisions, reach_time, energy, ...; see
-        scara_gym.benchmark.episodes) and "condition", the condition's name."""
+        scara_gym.benchmark.episodes) and "condition", the condition's name.
+    """
     if (policy_factory is None) == (policy is None):
-        raise TypeError("evaluate takes one of policy_factory (env -> policy) and policy (obs -> action), "
-                        f"got {'both' if policy is not None else 'neither'}")
+        raise UserTypeError("evaluate takes one of policy_factory (env -> policy) and policy (obs -> action), "
+                            f"got {'both' if policy is not None else 'neither'}")
     condition = get_condition(condition)
     checks.integer("record", record, 0)
     if env_kwargs is not None and not isinstance(env_kwargs, Mapping):
-        raise TypeError(f"env_kwargs must be a mapping of environment arguments or None, got {env_kwargs!r}")
+        raise UserTypeError(f"env_kwargs must be a mapping of environment arguments or None, got {env_kwargs!r}")
     env = condition.make_env(control_mode, env_id, **(env_kwargs or {}))
     seeds = condition.seeds(episodes)
     result = run_episodes(env, policy if policy is not None else policy_factory(env), seeds, [condition.options(s) for s in seeds],

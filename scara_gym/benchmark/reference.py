@@ -14,6 +14,7 @@ import numpy as np
 from scipy.integrate import solve_ivp
 
 from scara_gym.model import records as R
+from scara_gym.model.checks import UserError
 from scara_gym.model.dynamics import derivative
 from scara_gym.model.integrator import event_values, handle_event, initial_modes, settle_holds
 from scara_gym.model.params import DEFAULT_PARAMS, ScaraParams
@@ -33,7 +34,7 @@ def scipy_point_to_point(params: ScaraParams = DEFAULT_PARAMS, *, method: str = 
     check_tolerance("rtol", rtol)
     check_tolerance("atol", atol)
     if form not in FORMS:
-        raise ValueError(f"form must be one of {sorted(FORMS)}, got {form!r}")
+        raise UserError(f"form must be one of {sorted(FORMS)}, got {form!r}")
     p = params.to_record()
     config = np.zeros(1, dtype=R.CONFIG)[0]
     config["form"] = FORMS[form]

@@ -1,8 +1,8 @@
 """The benchmark tasks of the seed paper (ARGESIM C11, sections 1-3).
 
-a. :func:`compare_forms`: implicit vs explicit form, same results, runtimes compared.
-b. :func:`point_to_point`: (0, 0, 0) -> (2, 2, 0.3) with a located stop event at acc.
-c. :func:`obstacle_avoidance`: the ``dec`` rule in the seed's two variants
+a. `compare_forms`: implicit vs explicit form, same results, runtimes compared.
+b. `point_to_point`: (0, 0, 0) -> (2, 2, 0.3) with a located stop event at acc.
+c. `obstacle_avoidance`: the ``dec`` rule in the seed's two variants
    ("restart", the seed's MATLAB version, and "continuous", its Simulink version),
    and "none" (plain PD, which hits the wall).
 """
@@ -71,6 +71,7 @@ def sample_point_to_point(times, params: ScaraParams = DEFAULT_PARAMS, *, form: 
 
 @dataclass(frozen=True)
 class FormComparison:
+    """The explicit and the implicit form of the model side by side on task b (compare_forms)."""
     runtime_explicit: float
     """Best of the repeats, task b to the stop event [s]."""
     runtime_implicit: float

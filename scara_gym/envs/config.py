@@ -2,11 +2,11 @@
 HighwayEnv's ``default_config``).
 
 One frozen value holds every argument of the task; its defaults are the latest id's
-(Scara-C11-v2). :class:`~scara_gym.envs.task.ScaraTask` takes it, and the single, vector,
+(Scara-C11-v2). `ScaraTask` takes it, and the single, vector,
 CUDA and goal environments take ``config=`` plus keyword overrides of its fields
 (``ScaraEnv(control_mode="voltage")`` is ``ScaraEnv(config=EnvConfig(control_mode="voltage"))``).
 Each registered id is such a value (``scara_gym.registration``), and the cards' argument
-lists are written from the fields' documentation here (:func:`arguments_markdown`). The values
+lists are written from the fields' documentation here (`arguments_markdown`). The values
 are checked where a task is built from them, each mistake naming its field and what it allows.
 """
 
@@ -93,7 +93,8 @@ class EnvConfig:
 
     def replace(self, **overrides) -> EnvConfig:
         """This configuration with some fields changed; an unknown name is an error that
-        lists the fields."""
+        lists the fields.
+        """
         unknown = sorted(set(overrides) - set(FIELDS))
         if unknown:
             raise TypeError(f"unknown environment argument(s) {unknown}; the arguments are {list(FIELDS)}")
@@ -110,7 +111,8 @@ FIELDS = tuple(f.name for f in dataclasses.fields(EnvConfig))
 
 def make_config(config: EnvConfig | None, overrides: dict, base: EnvConfig | None = None) -> EnvConfig:
     """``config`` (or ``base``, default ``EnvConfig()``) with ``overrides``: what each
-    environment class's ``config=`` and keyword arguments give."""
+    environment class's ``config=`` and keyword arguments give.
+    """
     if config is not None and not isinstance(config, EnvConfig):
         raise TypeError(f"config must be an EnvConfig (or None), got {config!r}")
     start = config if config is not None else (base if base is not None else EnvConfig())
@@ -120,7 +122,8 @@ def make_config(config: EnvConfig | None, overrides: dict, base: EnvConfig | Non
 def arguments_markdown(defaults: EnvConfig, extra: tuple[tuple[str, Any, str], ...] = (),
                        indent: str = "") -> str:
     """The card's argument list: ``- name (default): doc`` per field of EnvConfig (the
-    defaults of ``defaults``), then ``extra`` (name, default, doc) entries."""
+    defaults of ``defaults``), then ``extra`` (name, default, doc) entries.
+    """
     lines = []
     entries = [(f.name, getattr(defaults, f.name), f.metadata["doc"]) for f in dataclasses.fields(EnvConfig)]
     for name, default, doc in (*entries, *extra):

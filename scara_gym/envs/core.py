@@ -5,7 +5,7 @@ computes the named reward terms and writes the observation. The single environme
 calls it once per step; the vector environment calls it for every robot inside one
 parallel loop, so both give bit-identical rollouts.
 
-Its interface is records (:mod:`scara_gym.model.records` and three of its own):
+Its interface is records (`scara_gym.model.records` and three of its own):
 
 - ``TASK``: the environment's constants (control step, time limit, reward weights,
   set-point mapping, observation bounds), shared by all robots;
@@ -114,7 +114,8 @@ def observe(robot, p, task, out):
 def control_step(robot, p, config, task, log, outcome, workspace, timers):
     """Advance one robot by one control step (or to its stop event) under its command, in the
     integrator's work arrays (``integrator.new_workspace``); timers: None, or the integrator's
-    (``integrator.integrate_timed``)."""
+    (``integrator.integrate_timed``).
+    """
     x = robot.x
     t = robot.t
     distance_before = outcome.distance
@@ -176,7 +177,8 @@ def start_episode(robot, p, config, task, outcome, obs):
 @njit(**JIT)
 def begin_episode(robot, p, config, task, outcome, obs, start, target):
     """A new episode: the robot at rest at ``start`` with target q^ = ``target`` (written into
-    its parameters ``p``; in "pd" mode also its first command), then start_episode."""
+    its parameters ``p``; in "pd" mode also its first command), then start_episode.
+    """
     for i in range(robot.x.shape[0]):
         robot.x[i] = 0.0
     for i in range(3):
@@ -219,7 +221,8 @@ def pd_actions(obs, setpoints, params, out):
     """The "voltage"-mode actions that apply the C11 PD law (eq. 15-16, ``pd_voltage``) to
     set-points on observations: U / limit, the limit widened where the observation says
     critical. obs (n, N_OBS) and setpoints (n, 3) float64; params: one record per row, or
-    one for all rows; out (n, 3)."""
+    one for all rows; out (n, 3).
+    """
     for i in range(obs.shape[0]):
         p = params[i if params.shape[0] > 1 else 0]
         widened = obs[i, O_CRITICAL] > 0.5
@@ -245,7 +248,8 @@ def begin_robot(i, start, target, robots, params, config, task, outcomes, obs):
 def restore_robot(i, x, hold, t, step_size, episode_steps, robots, params, config, task, outcomes, obs):
     """Robot i in a state of an earlier episode of the same target and parameters: its state
     vector x (energy included), current holds, time t and the integrator's next step size
-    (the episode goes on bit for bit), after episode_steps steps."""
+    (the episode goes on bit for bit), after episode_steps steps.
+    """
     robot = robots[i]
     for k in range(robot.x.shape[0]):
         robot.x[k] = x[k]
@@ -270,7 +274,8 @@ T_STEP = N_TIMERS - 1  # timers slot of profile_robot's whole step [cycles]
 @njit(**JIT)
 def profile_robot(i, action, robots, params, config, task, log, outcomes, obs, timers):
     """step_robot with the integrator's timers (the benchmark's cost breakdown: a separate
-    compilation, so that the environment's own step carries no timer)."""
+    compilation, so that the environment's own step carries no timer).
+    """
     started = cycles()
     status = timed_robot_step(action, robots[i], params[i], config[0], task[0], log[i], outcomes[i], obs[i],
                               new_workspace(), timers)
@@ -297,7 +302,8 @@ def step_robots(active, actions, robots, params, config, task, log, outcomes, ob
 def step_robots_serial(active, actions, robots, params, config, task, log, outcomes, obs):
     """step_robots on the calling thread alone. With one thread, a parallel loop still wakes
     numba's thread pool, whose idle OpenMP worker then spins on a core (about 40 % of one
-    core per process while torch trains between env steps)."""
+    core per process while torch trains between env steps).
+    """
     for i in range(robots.shape[0]):
         if active[i]:
             robot_step(actions[i], robots[i], params[i], config[0], task[0], log[i], outcomes[i], obs[i],
@@ -358,7 +364,8 @@ def next_episode(i, robots, params, params_flat, config, task, outcomes, obs, pl
 @njit(**JIT)
 def goal_gap(obs_row, target) -> float:
     """max_j |q_j - q^_j| on the goals as the goal env sees them: q as observed (float32) and
-    the target rounded to float32, the difference in float64 (GoalRules' success test)."""
+    the target rounded to float32, the difference in float64 (GoalRules' success test).
+    """
     gap = 0.0
     for j in range(3):
         gap = max(gap, abs(np.float64(obs_row[O_Q + j]) - np.float64(np.float32(target[j]))))
@@ -377,7 +384,8 @@ def vector_robot_step(i, same_step, max_episode_steps, terminate_collisions, goa
 
     goal_threshold > 0: the goal env's episode end (ScaraGoalVectorEnv): the goal test
     ``goal_gap < goal_threshold`` instead of the located target event, or a terminating
-    collision; 0: the environment's own."""
+    collision; 0: the environment's own.
+    """
     status = 0
     stepped = same_step or not prev_done[i]
     if not stepped:

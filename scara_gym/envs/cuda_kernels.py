@@ -1,5 +1,5 @@
 """CUDA kernels of the GPU vector environment: one thread per robot, running the compiled
-per-robot step of :mod:`scara_gym.envs.core` (and through it the model's integrator and
+per-robot step of `scara_gym.envs.core` (and through it the model's integrator and
 dynamics) as device functions. There is one physics source: the kernels below only give
 each thread its index and its work arrays, and report failures.
 
@@ -84,7 +84,8 @@ def step_kernel_ptx(cc: tuple[int, int] = (9, 0)) -> str:
     a check that the device build of the physics compiles, and the input of ``ptxas -v`` for
     its register and stack figures. numba-cuda asks the current device for its compute
     capability when it compiles the device functions a kernel calls; here there may be none,
-    so the question is answered with ``cc`` for the duration of the call."""
+    so the question is answered with ``cc`` for the duration of the call.
+    """
     from types import SimpleNamespace
     from unittest import mock
 

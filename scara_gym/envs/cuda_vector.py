@@ -2,7 +2,7 @@
 
 ``gym.make_vec("Scara-C11-v1", num_envs=N, vectorization_mode="vector_entry_point",
 device="cuda")``. One thread per robot runs the same compiled step as the CPU vector env
-(:mod:`scara_gym.envs.cuda_kernels`); observations, rewards, flags and info stay on the
+(`scara_gym.envs.cuda_kernels`); observations, rewards, flags and info stay on the
 GPU as torch tensors, and torch CUDA tensors are accepted as actions.
 """
 
@@ -38,7 +38,8 @@ def as_floats(record) -> np.ndarray:
 def load_backend():
     """(torch, numba.cuda, the kernels module), or an ImportError/RuntimeError that names what is
     missing: numba-cuda, torch, or a GPU with its driver (``NUMBA_ENABLE_CUDASIM=1`` runs the
-    backend on numba's CUDA simulator instead)."""
+    backend on numba's CUDA simulator instead).
+    """
     try:
         import torch
     except ImportError:
@@ -67,7 +68,7 @@ def load_backend():
 class ScaraCudaVectorEnv(TaskSurface, VectorEnv):
     """N copies of a Scara-C11 environment stepped on a CUDA GPU, one thread per robot.
 
-    The arguments are those of :class:`~scara_gym.envs.vector.ScaraVectorEnv` (num_envs,
+    The arguments are those of `ScaraVectorEnv` (num_envs,
     max_episode_steps, autoreset_mode and the environment's own), plus:
 
     | argument | meaning | default |
@@ -100,7 +101,7 @@ class ScaraCudaVectorEnv(TaskSurface, VectorEnv):
     is refused with a ValueError, and so is ``randomize_start`` with a delay or a rate limit in
     "pd" mode (the autoreset's neutral action holds the default start). Rendering is not supported.
 
-    Of the state surface (:mod:`scara_gym.envs.surface`) it has the configuration (``config``,
+    Of the state surface (`scara_gym.envs.surface`) it has the configuration (``config``,
     ``params``, ``control_mode`` ...) and the pure set-point maps (``setpoint_to_action``,
     ``action_to_setpoint``). The per-robot methods of the CPU vector env (snapshots, the PD maps
     with a robot's parameters, noise-free observations) are not offered: the robots' states and
@@ -232,7 +233,8 @@ class ScaraCudaVectorEnv(TaskSurface, VectorEnv):
 
     def _neutral_actions(self, starts: np.ndarray):
         """The actions of robots at rest at ``starts``: their set-points in "pd" mode, zero volts
-        in "voltage" mode (the actuator's state before an episode), as a tensor."""
+        in "voltage" mode (the actuator's state before an episode), as a tensor.
+        """
         task = self._task
         neutral = np.array([task.setpoint_to_action(start) for start in starts]) if task.control_mode == "pd" \
             else np.zeros((len(starts), 3))
@@ -257,6 +259,7 @@ class ScaraCudaVectorEnv(TaskSurface, VectorEnv):
 
     # -- episodes ------------------------------------------------------------------------
     def reset(self, *, seed: int | list[int | None] | None = None, options: dict | None = None):
+        """Start every robot's episode (Gymnasium's VectorEnv.reset); seed: one, or one per robot."""
         seeds = vector_seeds(seed, self.num_envs)
         options = checks.mapping("reset options", options, (*RESET_OPTIONS, "reset_mask"))
         mask = check_reset_mask(options, self.num_envs, self.autoreset_mode)
@@ -314,7 +317,8 @@ class ScaraCudaVectorEnv(TaskSurface, VectorEnv):
     def _reset_masked(self, mask: np.ndarray, seeds: list[int | None], options: dict):
         """reset(options={"reset_mask": mask}) in "Disabled" autoreset mode: the robots of ``mask``
         begin episodes (each drawn as in a full reset, from its seed or its own generator), the
-        others keep their episodes and their last observations."""
+        others keep their episodes and their last observations.
+        """
         if not self._started:
             raise RuntimeError("options['reset_mask']: call reset() without a mask first (no robot has begun)")
         torch, task, n = self._torch, self._task, self.num_envs
@@ -381,6 +385,7 @@ class ScaraCudaVectorEnv(TaskSurface, VectorEnv):
 
     # -- stepping ------------------------------------------------------------------------
     def step(self, actions):
+        """One control step of every robot (Gymnasium's VectorEnv.step), the episodes that end reset as the autoreset mode says."""
         if not self._started:
             raise RuntimeError("call reset() before step()")
         torch, kernels = self._torch, self._kernels
@@ -456,7 +461,8 @@ class ScaraCudaVectorEnv(TaskSurface, VectorEnv):
 
     def _judge(self, clean_obs, targets, info, stepped):
         """The goal env's reward and info of a step, from the true observations at its end and
-        the targets it ran to (only where _goal_threshold > 0)."""
+        the targets it ran to (only where _goal_threshold > 0).
+        """
         raise NotImplementedError
 
     def _info(self, packed) -> dict:
@@ -504,8 +510,9 @@ def _masked(torch, obs, done):
 
 
 class TorchActuator:
-    """:class:`scara_gym.envs.sim_to_real.Actuator` on torch tensors: the same operations in
-    the same order, so the same bits."""
+    """`scara_gym.envs.sim_to_real.Actuator` on torch tensors: the same operations in
+    the same order, so the same bits.
+    """
 
     def __init__(self, torch, options, num_robots: int, device) -> None:
         self.torch = torch
@@ -518,14 +525,16 @@ class TorchActuator:
 
     def reset(self, rows, neutral) -> None:
         """The robots where ``rows`` (a bool tensor) begin an episode: the line full of their
-        neutral action (``neutral``: one row per robot), the output at it."""
+        neutral action (``neutral``: one row per robot), the output at it.
+        """
         rows = rows[:, None]
         self.pending = self.torch.where(rows[:, :, None], neutral[:, None, :], self.pending)
         self.applied = self.torch.where(rows, neutral, self.applied)
 
     def apply(self, actions):
         """The actions every robot applies this step, given ``actions`` (clipped to [-1, 1]);
-        advances the delay lines."""
+        advances the delay lines.
+        """
         torch = self.torch
         out = actions
         if self.pending.shape[1]:

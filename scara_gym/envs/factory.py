@@ -13,8 +13,9 @@ DEVICES = ("cpu", "cuda")
 
 def make_vector_env(num_envs: int = 1, device: str = "cpu", **kwargs) -> VectorEnv:
     """The vector entry point of the registered ids: ``device="cpu"`` (default) gives
-    :class:`ScaraVectorEnv`, ``device="cuda"`` the GPU backend
-    (:class:`scara_gym.envs.cuda_vector.ScaraCudaVectorEnv`), with the same arguments."""
+    `ScaraVectorEnv`, ``device="cuda"`` the GPU backend
+    (`scara_gym.envs.cuda_vector.ScaraCudaVectorEnv`), with the same arguments.
+    """
     device = checks.choice("device", device, DEVICES)
     if device == "cuda":  # numba-cuda and torch are loaded when the env is made
         return ScaraCudaVectorEnv(num_envs=num_envs, **kwargs)

@@ -39,7 +39,8 @@ Q = OBSERVATION_LAYOUT["q"]
 
 def _costs(info, batch: int | None) -> np.ndarray | float:
     """info["cost"] of one info dict, a sequence or array of them (SB3's replay buffer), or a
-    dict of arrays (the vector env); None or {}: no collision."""
+    dict of arrays (the vector env); None or {}: no collision.
+    """
     if info is None or (isinstance(info, Mapping) and not info):
         return 0.0 if batch is None else np.zeros(batch)
     missing = ("info must hold 'cost' (the step's collision cost) for the collision term; with SB3's "
@@ -227,7 +228,7 @@ class ScaraGoalEnv(_GoalAPI, ScaraEnv):
     - goal_tolerance (None): tol of the goal test [rad for q1, q2; m for q3], in
       [acc, 1]; None: acc = 0.001, the C11 task. A looser goal (Gymnasium-Robotics'
       distance_threshold) makes an easier task, e.g. for a curriculum.
-    - config (None): an :class:`~scara_gym.envs.config.EnvConfig` (default: ``GOAL_CONFIG``,
+    - config (None): an `EnvConfig` (default: ``GOAL_CONFIG``,
       the latest id's arguments with goals drawn per episode); every field of it can be
       given as a keyword, over it:
 {ARGUMENTS}
@@ -284,7 +285,8 @@ class ScaraGoalVectorEnv(_GoalAPI, ScaraVectorEnv):
     """N copies of Scara-C11-Goal-v1 stepped in parallel (ScaraVectorEnv's arguments plus
     reward_type, collision_penalty and goal_tolerance). Observations are a dict of batched arrays; with
     ``autoreset_mode="SameStep"`` ``info["final_obs"]`` is such a dict too (zero for the
-    robots that did not end). Robot i is the single env seeded seed + i."""
+    robots that did not end). Robot i is the single env seeded seed + i.
+    """
 
     def __init__(self, num_envs: int = 1, max_episode_steps: int = 300,
                  autoreset_mode: str | AutoresetMode = AutoresetMode.NEXT_STEP, num_threads: int | None = None,
@@ -312,7 +314,8 @@ class ScaraGoalVectorEnv(_GoalAPI, ScaraVectorEnv):
 
 def make_goal_vector_env(num_envs: int = 1, device: str = "cpu", **kwargs):
     """The vector entry point of Scara-C11-Goal-v0: ``device="cpu"`` (default) gives
-    :class:`ScaraGoalVectorEnv`, ``device="cuda"`` :class:`ScaraCudaGoalVectorEnv`."""
+    `ScaraGoalVectorEnv`, ``device="cuda"`` `ScaraCudaGoalVectorEnv`.
+    """
     if checks.choice("device", device, ("cpu", "cuda")) == "cuda":
         return ScaraCudaGoalVectorEnv(num_envs=num_envs, **kwargs)
     return ScaraGoalVectorEnv(num_envs=num_envs, **kwargs)
@@ -325,7 +328,8 @@ class ScaraCudaGoalVectorEnv(_GoalAPI, ScaraCudaVectorEnv):
     ScaraGoalVectorEnv's robot i bit for bit on numba's CUDA simulator. The goal test
     ends episodes inside the step kernel (core.vector_robot_step's goal_threshold);
     rewards and terms are the goal rules on tensors. compute_reward and friends take
-    numpy arrays (HER's replay buffers), as on the CPU."""
+    numpy arrays (HER's replay buffers), as on the CPU.
+    """
 
     def __init__(self, num_envs: int = 1, max_episode_steps: int = 300,
                  autoreset_mode: str | AutoresetMode = AutoresetMode.NEXT_STEP,
@@ -362,7 +366,8 @@ class ScaraCudaGoalVectorEnv(_GoalAPI, ScaraCudaVectorEnv):
 
 def _sqrt(torch, values):
     """Correctly rounded square roots: torch's float64 sqrt on the CPU is not (about 1 % of
-    values differ from numpy's in the last bit), CUDA's is."""
+    values differ from numpy's in the last bit), CUDA's is.
+    """
     if values.device.type == "cpu":
         return torch.from_numpy(np.sqrt(values.numpy()))
     return torch.sqrt(values)

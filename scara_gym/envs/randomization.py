@@ -1,7 +1,7 @@
 """Domain randomization: model parameters drawn per episode from documented ranges.
 
-A :class:`ParameterRanges` maps dotted parameter paths (those of
-:meth:`ScaraParams.replace`, e.g. ``"arm.load_mass"``, ``"axes.0.resistance"``) to
+A `ParameterRanges` maps dotted parameter paths (those of
+`ScaraParams.replace`, e.g. ``"arm.load_mass"``, ``"axes.0.resistance"``) to
 uniform ranges [low, high] in the parameter's own unit. The presets scale the
 environment's nominal parameters (the C11 set unless ``params`` says otherwise):
 
@@ -23,7 +23,7 @@ comparison (load x2, wall 2 cm closer, current limits -15 %, resistances +20 %) 
 inside the "all" ranges. With the C11 targets the wall ranges keep the task solvable: the
 target tip stays beyond the wall band and the target height above the wall.
 
-No gymnasium import here: the task object (:mod:`scara_gym.envs.task`) uses it.
+No gymnasium import here: the task object (`scara_gym.envs.task`) uses it.
 """
 
 from __future__ import annotations
@@ -98,7 +98,8 @@ class ParameterRanges:
     @classmethod
     def from_argument(cls, value, nominal: ScaraParams) -> ParameterRanges | None:
         """``randomize_params`` of the environments: None/False (off), True ("physics"), a preset
-        name, a ParameterRanges, or a dict path -> (low, high) in the parameter's unit."""
+        name, a ParameterRanges, or a dict path -> (low, high) in the parameter's unit.
+        """
         text = (f"randomize_params must be False, True, one of {sorted(PRESETS)}, a ParameterRanges or a "
                 f"dict of dotted paths -> (low, high)")
         if value is None or value is False:
@@ -150,7 +151,8 @@ class ParameterRanges:
 
     def extreme(self, nominal: ScaraParams) -> ScaraParams:
         """The nominal parameters with every range at its end of largest magnitude: what the
-        observation bounds are built around."""
+        observation bounds are built around.
+        """
         return nominal.replace({path: max(bounds, key=abs) for path, bounds in self.ranges.items()})
 
 
@@ -168,7 +170,8 @@ def check_overrides(name: str, overrides, nominal: ScaraParams) -> dict[str, flo
 
 def within_bounds(params: ScaraParams, bound_params: ScaraParams) -> str | None:
     """None if the observation bounds built around bound_params hold every observation under
-    params, else the reason (the currents, the tip and the wall features)."""
+    params, else the reason (the currents, the tip and the wall features).
+    """
     for i, (axis, bound) in enumerate(zip(params.axes, bound_params.axes)):
         if axis.current_limit > bound.current_limit:
             return (f"axes.{i}.current_limit = {axis.current_limit:g} A exceeds the observation bound "

@@ -123,7 +123,7 @@ class ScaraEnv(TaskSurface, gym.Env):
     ## Arguments
 
     ``ScaraEnv(config=None, render_mode=None, **overrides)``: ``config`` is an
-    :class:`~scara_gym.envs.config.EnvConfig` (default ``EnvConfig()``, the latest id's
+    `EnvConfig` (default ``EnvConfig()``, the latest id's
     arguments), and every field of it can be given as a keyword, over ``config``:
 
 {ARGUMENTS}
@@ -202,7 +202,7 @@ class ScaraEnv(TaskSurface, gym.Env):
         return self._task.robot_params["target"][0].copy()
 
     def snapshot(self) -> dict:
-        """The robot's state, to put it back with :meth:`restore`.
+        """The robot's state, to put it back with `restore`.
 
         Returns:
             A dict of copies: "x" (state vector), "hold" (current holds), "t" (time [s]),
@@ -220,7 +220,7 @@ class ScaraEnv(TaskSurface, gym.Env):
         reference state initialization, and for look-ahead (a shield's, a planner's).
 
         Args:
-            snapshot: a :meth:`snapshot` (of this env or a vector env's robot) of an env with the
+            snapshot: a `snapshot` (of this env or a vector env's robot) of an env with the
                 same sim-to-real options; the current episode must have its target and
                 parameters (reset to those first).
 
@@ -242,7 +242,7 @@ class ScaraEnv(TaskSurface, gym.Env):
 
     def setpoint_action(self, obs, setpoint) -> np.ndarray:
         """The action that commands a set-point in this env's control mode: the clipped "pd"
-        action, or in "voltage" mode the C11 PD law's voltages on the observation (:meth:`pd_action`).
+        action, or in "voltage" mode the C11 PD law's voltages on the observation (`pd_action`).
 
         Args:
             obs: one flat observation (18,) or a batch (n, 18).
@@ -268,7 +268,7 @@ class ScaraEnv(TaskSurface, gym.Env):
         return self._task.pd_action(obs, setpoint)
 
     def pd_setpoint(self, obs, action, saturation_margin: float = 0.2) -> np.ndarray:
-        """The inverse of :meth:`pd_action`: the set-point for which the C11 PD law gives the
+        """The inverse of `pd_action`: the set-point for which the C11 PD law gives the
         "voltage"-mode action on the observation.
 
         Args:
@@ -284,6 +284,7 @@ class ScaraEnv(TaskSurface, gym.Env):
 
     # -- API ---------------------------------------------------------------------------
     def reset(self, *, seed: int | None = None, options: dict | None = None):
+        """Start an episode (Gymnasium's Env.reset): the observation and the info of its first state."""
         super().reset(seed=checks.seed("seed", seed))
         info = self._task.reset_robot(0, self.np_random, options)
         self._needs_reset = False
@@ -293,6 +294,7 @@ class ScaraEnv(TaskSurface, gym.Env):
         return self._task.observation(0, self.np_random), info
 
     def step(self, action):
+        """One control step of the robot (Gymnasium's Env.step): observation, reward, terminated, truncated, info."""
         if self._needs_reset:
             raise RuntimeError("the episode has ended (or never started): call reset() before step()")
         if not (type(action) is np.ndarray and action.shape == (3,) and action.dtype.char in "fd"
@@ -316,6 +318,7 @@ class ScaraEnv(TaskSurface, gym.Env):
 
     # -- rendering ---------------------------------------------------------------------
     def render(self):
+        """The frame of the render mode: an RGB array, or the window drawn ("human")."""
         if self.render_mode is None:
             gym.logger.warn("render() called without a render_mode; pass render_mode='rgb_array' "
                             "or 'human' to gym.make")
@@ -331,6 +334,7 @@ class ScaraEnv(TaskSurface, gym.Env):
         return frame if self.render_mode == "rgb_array" else None
 
     def close(self):
+        """Close the render window, if one is open."""
         if self._renderer is not None:
             self._renderer.close()
             self._renderer = None
@@ -358,7 +362,8 @@ def card(summary: str, config: EnvConfig, history: str) -> str:
     """ScaraEnv's card for ``config``: ``summary`` (title and paragraphs), the spaces, reward,
     starting state and episode end, the observation bounds and argument defaults of
     ``config``, and ``history`` (the version history's lines); each registered variant's
-    card is one of these (scara_gym.envs.variants)."""
+    card is one of these (scara_gym.envs.variants).
+    """
     body = _BODY.replace("{OBSERVATIONS}", textwrap.indent(observation_table(ScaraTask(config)), "    "))
     body = body.replace("{ARGUMENTS}", arguments_markdown(config, (("render_mode", None, RENDER_MODE_DOC),),
                                                           indent="    "))

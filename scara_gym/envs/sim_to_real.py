@@ -29,7 +29,7 @@ Sensor noise is drawn first, then observation noise (both may be given). Actions
 and the rate limit. With a delay or a rate limit the action applied in a step is in
 ``info["applied_action"]``.
 
-No gymnasium import here: the task object (:mod:`scara_gym.envs.task`) uses it.
+No gymnasium import here: the task object (`scara_gym.envs.task`) uses it.
 """
 
 from __future__ import annotations
@@ -81,7 +81,8 @@ class SimToReal:
     def from_arguments(cls, observation_noise, action_delay, action_rate_limit, control_dt: float,
                        layout: Mapping, names: tuple[str, ...], sensor_noise=None) -> SimToReal:
         """Check the four environment arguments; layout: field -> slice or index of the flat
-        observation; names: one name per entry."""
+        observation; names: one name per entry.
+        """
         std = _stds("observation_noise", observation_noise, layout, names)
         sensed = {field: layout[field] for field in SENSOR_CHANNELS}
         sensor = _stds("sensor_noise", sensor_noise, sensed, names[:N_SENSED])
@@ -128,7 +129,8 @@ class Actuator:
 
     def apply(self, rows: np.ndarray, actions: np.ndarray) -> np.ndarray:
         """The actions the robots ``rows`` (indices) apply this step, given ``actions``
-        (clipped to [-1, 1]) of shape (len(rows), 3); advances their delay lines."""
+        (clipped to [-1, 1]) of shape (len(rows), 3); advances their delay lines.
+        """
         out = actions
         if self.options.action_delay:
             out = self.pending[rows, 0].copy()
@@ -146,7 +148,8 @@ def sense(obs: np.ndarray, std: np.ndarray, rng: np.random.Generator, p, obstacl
     """One observation (float32) as noisy sensors give it: Gaussian noise of ``std`` on the nine
     measured entries (drawn only where std > 0, from ``rng``) and the derived entries computed
     from the noisy measurements with the robot's geometry and wall (``p``: its PARAMS record),
-    clipped to [low, high] (float64 out)."""
+    clipped to [low, high] (float64 out).
+    """
     out = obs.astype(np.float64)
     noisy = std > 0.0
     noise = np.zeros(N_SENSED)
@@ -164,7 +167,8 @@ def sense(obs: np.ndarray, std: np.ndarray, rng: np.random.Generator, p, obstacl
 def add_noise(obs: np.ndarray, std: np.ndarray, rng: np.random.Generator, low: np.ndarray,
               high: np.ndarray) -> np.ndarray:
     """One observation (float32) plus zero-mean Gaussian noise of ``std`` per entry, clipped
-    to [low, high]; draws only for the entries with std > 0, from ``rng``."""
+    to [low, high]; draws only for the entries with std > 0, from ``rng``.
+    """
     noisy = std > 0.0
     out = obs.astype(np.float64)
     out[noisy] += rng.standard_normal(int(noisy.sum())) * std[noisy]

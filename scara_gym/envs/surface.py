@@ -1,16 +1,16 @@
 """The environments' declared state surface: what agents and wrappers may read and call.
 
-The task object (:class:`~scara_gym.envs.task.ScaraTask`, an env's ``_task``) is the envs'
+The task object (`ScaraTask`, an env's ``_task``) is the envs'
 engine and internal. What agents, policies, hooks and wrappers need of it is declared here, as
 documented methods and properties of the envs:
 
-- :class:`TaskSurface` (every env: single, CPU vector, CUDA vector): the configuration
+- `TaskSurface` (every env: single, CPU vector, CUDA vector): the configuration
   (``config``, ``params``, ``control_mode`` ...) and the pure "pd" set-point maps
   (``setpoint_to_action``, ``action_to_setpoint``).
-- :class:`RobotsSurface` (the CPU vector env): per robot ``snapshot``/``restore``, the
+- `RobotsSurface` (the CPU vector env): per robot ``snapshot``/``restore``, the
   noise-free observation, ``reset_robot``, the episode parameters, the targets and the
   set-point maps that need a robot's parameters (``setpoint_action``, ``pd_action``,
-  ``pd_setpoint``). The single env (:class:`~scara_gym.envs.scara_env.ScaraEnv`) has the same
+  ``pd_setpoint``). The single env (`ScaraEnv`) has the same
   methods without the robot index.
 """
 
@@ -31,8 +31,9 @@ class TaskSurface:
 
     @property
     def config(self) -> EnvConfig:
-        """The :class:`~scara_gym.envs.config.EnvConfig` this env was built from (its defaults, the
-        given config and the keyword overrides merged); ``ScaraTask(env.config)`` models it."""
+        """The `EnvConfig` this env was built from (its defaults, the
+        given config and the keyword overrides merged); ``ScaraTask(env.config)`` models it.
+        """
         return self._task.env_config
 
     @property
@@ -87,7 +88,7 @@ class TaskSurface:
         return self._task.setpoint_to_action(setpoint)
 
     def action_to_setpoint(self, action) -> np.ndarray:
-        """The set-point a "pd" action commands (the inverse of :meth:`setpoint_to_action`).
+        """The set-point a "pd" action commands (the inverse of `setpoint_to_action`).
 
         Args:
             action: one "pd" action (3,) or a batch (n, 3).
@@ -112,11 +113,12 @@ class RobotsSurface(TaskSurface):
     @property
     def episode_params(self) -> list[ScaraParams]:
         """Every robot's model parameters in its current episode (``params`` unless randomized or
-        overridden), a list over the robots."""
+        overridden), a list over the robots.
+        """
         return list(self._task.episode_params)
 
     def snapshot(self, robot: int) -> dict:
-        """Robot ``robot``'s state, to put it back with :meth:`restore`.
+        """Robot ``robot``'s state, to put it back with `restore`.
 
         Args:
             robot: the robot's index.
@@ -138,7 +140,7 @@ class RobotsSurface(TaskSurface):
         Args:
             robot: the robot's index; its current episode must have the snapshot's target and
                 parameters (reset it to those first).
-            snapshot: a :meth:`snapshot` of an env with the same sim-to-real options.
+            snapshot: a `snapshot` of an env with the same sim-to-real options.
 
         Raises:
             ValueError: the target, parameters or actuator line differ from the snapshot's.
@@ -158,7 +160,7 @@ class RobotsSurface(TaskSurface):
 
         Returns:
             The robot's reset info: "target", "start", and "params" where drawn or set. Its
-            observation is :meth:`noise_free_observation` (no noise is drawn here).
+            observation is `noise_free_observation` (no noise is drawn here).
         """
         robot = self._robot(robot)
         info = self._task.reset_robot(robot, self._rngs[robot] if rng is None else rng, options)
@@ -182,7 +184,7 @@ class RobotsSurface(TaskSurface):
 
     def setpoint_action(self, obs, setpoint, robot: int | None = None) -> np.ndarray:
         """The action that commands a set-point in this env's control mode: the clipped "pd"
-        action, or in "voltage" mode the C11 PD law's voltages on the observation (:meth:`pd_action`).
+        action, or in "voltage" mode the C11 PD law's voltages on the observation (`pd_action`).
 
         Args:
             obs: one observation (18,) or a batch (n, 18).
@@ -210,7 +212,7 @@ class RobotsSurface(TaskSurface):
         return self._task.pd_action(obs, setpoint, None if robot is None else self._robot(robot))
 
     def pd_setpoint(self, obs, actions, saturation_margin: float = 0.2) -> np.ndarray:
-        """The inverse of :meth:`pd_action`: the set-point for which the C11 PD law gives the
+        """The inverse of `pd_action`: the set-point for which the C11 PD law gives the
         "voltage"-mode actions on the observations.
 
         Args:

@@ -1,7 +1,7 @@
 """The C11 task: one owner of the configuration, the compiled records and the episode logic.
 
-:class:`ScaraTask` validates the environment's arguments, holds the record arrays the
-compiled step (:mod:`scara_gym.envs.core`) works on for N robots, draws targets,
+`ScaraTask` validates the environment's arguments, holds the record arrays the
+compiled step (`scara_gym.envs.core`) works on for N robots, draws targets,
 resets robots and turns step outcomes into termination and info. The single
 environment is a ``ScaraTask`` with one robot, the vector environment one with N; both
 are thin Gymnasium adapters over it. No gymnasium import here: spaces are the adapters'.
@@ -9,7 +9,7 @@ are thin Gymnasium adapters over it. No gymnasium import here: spaces are the ad
 Public layouts: ``OBSERVATION_NAMES`` (one name per observation entry, the card's
 table) and ``OBSERVATION_LAYOUT`` (field name -> slice or index). The task object itself is
 internal (an env's ``_task``): agents and wrappers use the envs' state surface
-(:mod:`scara_gym.envs.surface`), e.g. ``env.unwrapped.setpoint_to_action``.
+(``scara_gym.envs.surface``), e.g. ``env.unwrapped.setpoint_to_action``.
 """
 
 from __future__ import annotations
@@ -129,7 +129,8 @@ class RewardWeights:
 def check_actions(action, shape: tuple[int, ...]) -> np.ndarray:
     """Finite float64 actions of the given shape (C-contiguous; not yet clipped: the compiled
     step clips them to [-1, 1] and counts the clipped components). Real numbers only: a
-    complex, boolean, text or object action is an error, not a cast."""
+    complex, boolean, text or object action is an error, not a cast.
+    """
     try:
         return checks.real_array("action", action, shape, range_text="values in [-1, 1] (beyond: clipped)")
     except TypeError as error:  # one exception type for every bad action
@@ -138,7 +139,8 @@ def check_actions(action, shape: tuple[int, ...]) -> np.ndarray:
 
 def vector_seeds(seed, num_envs: int) -> list[int | None]:
     """A vector env's reset seed per robot: None, an integer s (robot i gets s + i) or a list of
-    num_envs integers or None."""
+    num_envs integers or None.
+    """
     text = f"seed must be None, an integer >= 0 or a list of {num_envs} such seeds or None"
     if seed is None or checks.is_real(seed) or isinstance(seed, (bool, np.bool_)):
         first = checks.seed("seed", seed)
@@ -167,7 +169,7 @@ def draw_target(rng: np.random.Generator, start: np.ndarray, params: ScaraParams
 
 
 class EpisodePlan(NamedTuple):
-    """A checked episode start: what :meth:`ScaraTask.begin_episode` applies to one robot."""
+    """A checked episode start: what `ScaraTask.begin_episode` applies to one robot."""
 
     start: np.ndarray
     target: np.ndarray
@@ -224,14 +226,15 @@ INFO_SCALARS = INFO_FIELDS.index("hold1")
 
 
 class ScaraTask:
-    """Scara-C11 for ``num_robots`` robots, configured by an :class:`~scara_gym.envs.config.EnvConfig`
+    """Scara-C11 for ``num_robots`` robots, configured by an `EnvConfig`
     (``config``, default ``EnvConfig()``) with keyword overrides of its fields.
 
     The environments' engine, not a public API of its own (an env holds it as ``_task``): the
     envs declare what agents and wrappers may use (snapshots, the set-point maps, the targets,
-    per-robot observations) in :mod:`scara_gym.envs.surface`.
+    per-robot observations) in `scara_gym.envs.surface`.
     Its compiled records are ``step_config`` (the step's configuration), ``constants`` (the
-    task's constants), and per robot ``robots``, ``robot_params``, ``outcomes`` and ``obs``."""
+    task's constants), and per robot ``robots``, ``robot_params``, ``outcomes`` and ``obs``.
+    """
 
     def __init__(self, config: EnvConfig | None = None, num_robots: int = 1, **overrides) -> None:
         self.env_config = config = make_config(config, overrides)
@@ -338,7 +341,8 @@ class ScaraTask:
         critical (what the environment's "pd" mode does, evaluated once per control step).
         Batches: obs (n, 18) and setpoint (n, 3) or (3,) give (n, 3); one obs gives (3,).
         robot: whose parameters (default: robot i's for row i of a batch over all robots, else
-        the first robot's)."""
+        the first robot's).
+        """
         single = np.ndim(obs) == 1
         obs = np.atleast_2d(np.asarray(obs, dtype=np.float64))
         setpoints = np.ascontiguousarray(np.broadcast_to(np.asarray(setpoint, dtype=np.float64), (len(obs), 3)))
@@ -350,10 +354,11 @@ class ScaraTask:
         return out[0] if single else out
 
     def pd_setpoint(self, obs, actions, saturation_margin: float = 0.2) -> np.ndarray:
-        """The inverse of :meth:`pd_action`: the set-point q^ [rad, rad, m] for which the C11 PD
+        """The inverse of `pd_action`: the set-point q^ [rad, rad, m] for which the C11 PD
         law gives the "voltage"-mode actions on the observations (batches as pd_action). The law
         saturates, so a saturated action (|action| >= 0.999) asks ``saturation_margin`` more, to
-        stay saturated when the set-point is commanded again."""
+        stay saturated when the set-point is commanded again.
+        """
         single = np.ndim(obs) == 1
         obs = np.atleast_2d(np.asarray(obs, dtype=np.float64))
         actions = np.atleast_2d(np.asarray(actions, dtype=np.float64))
@@ -367,8 +372,9 @@ class ScaraTask:
 
     def setpoint_action(self, obs, setpoint, robot: int | None = None) -> np.ndarray:
         """The action that commands the set-point q^ [rad, rad, m] in this task's control mode:
-        the clipped "pd" action, or the PD law's voltages (:meth:`pd_action`, with ``robot``'s
-        parameters where given); batches too."""
+        the clipped "pd" action, or the PD law's voltages (`pd_action`, with ``robot``'s
+        parameters where given); batches too.
+        """
         if self.control_mode == "pd":
             return np.clip(self._pd_actions(setpoint), -1.0, 1.0)
         return self.pd_action(obs, setpoint, robot)
@@ -376,7 +382,8 @@ class ScaraTask:
     @staticmethod
     def check_joints(value, name: str) -> np.ndarray:
         """A start or target q [rad, rad, m] inside the joint range JOINT_LOW..JOINT_HIGH (the
-        "pd" mode's set-point range, which the observation bounds are built around)."""
+        "pd" mode's set-point range, which the observation bounds are built around).
+        """
         return checks.real_array(name, value, (3,), unit="rad, rad, m", low=JOINT_LOW, high=JOINT_HIGH,
                                  range_text=JOINT_RANGE_TEXT)
 
@@ -384,7 +391,8 @@ class ScaraTask:
     def episode_start(self, rng: np.random.Generator, options: dict | None) -> EpisodePlan:
         """The checked start of a new episode from the reset options and the episode RNG: the
         parameters first (drawn where randomized, then ``options["params"]`` overrides), then
-        start and target (a randomized target is drawn against the episode's wall)."""
+        start and target (a randomized target is drawn against the episode's wall).
+        """
         options = checks.mapping("reset options", options, RESET_OPTIONS)
         varied = self.randomization.draw(rng) if self.randomization else {}
         if "params" in options:
@@ -417,7 +425,8 @@ class ScaraTask:
 
     def reset_robot(self, i: int, rng: np.random.Generator, options: dict | None = None) -> dict:
         """Start a new episode of robot i; returns the reset info (target, start, and params:
-        the drawn or overridden parameters, where any)."""
+        the drawn or overridden parameters, where any).
+        """
         plan = self.episode_start(rng, options)
         self.begin_episode(i, plan)
         info = {"target": plan.target, "start": plan.start}
@@ -446,7 +455,8 @@ class ScaraTask:
     def snapshot(self, i: int) -> dict:
         """Robot i's state as ``restore`` takes it (copies): state vector, current holds, time,
         the integrator's next step size, steps taken, the target and parameters it holds for, and
-        with an action_delay or a rate limit the actuator line's state ("pending", "applied")."""
+        with an action_delay or a rate limit the actuator line's state ("pending", "applied").
+        """
         robot = self.robots[i]
         snapshot = {"x": robot["x"].copy(), "hold": robot["hold"].copy(), "t": float(robot["t"]),
                     "step_size": float(robot["step_size"]),
@@ -462,7 +472,8 @@ class ScaraTask:
         snapshot's state: the episode goes on from there (its step's reward terms zero). For
         starts along a recorded trajectory, as in reference state initialization. With an
         action_delay or a rate limit the snapshot must hold the actuator line's state of the same
-        delay (a snapshot of a task with the same sim-to-real options)."""
+        delay (a snapshot of a task with the same sim-to-real options).
+        """
         if self.actuator is not None:
             pending, applied = snapshot.get("pending"), snapshot.get("applied")
             if pending is None or applied is None or np.shape(pending) != self.actuator.pending[i].shape:
@@ -483,7 +494,8 @@ class ScaraTask:
     # -- steps ---------------------------------------------------------------------------
     def step_robot(self, i: int, action: np.ndarray) -> None:
         """One control step of robot i (action: 3 float64, C-contiguous); raises on bad input
-        (nothing changed) or a failed integration."""
+        (nothing changed) or a failed integration.
+        """
         clipped = None
         if self.actuator is not None:
             action = check_actions(action, (3,))  # finite before it enters the delay line
@@ -498,7 +510,8 @@ class ScaraTask:
 
     def step_robots(self, active: np.ndarray, actions: np.ndarray, parallel: bool = True) -> None:
         """One control step of every active robot (actions: checked (N, 3) float64), on numba's
-        threads, or on the calling thread alone with ``parallel=False``."""
+        threads, or on the calling thread alone with ``parallel=False``.
+        """
         if self.actuator is not None:
             rows = np.flatnonzero(active)
             clipped = np.count_nonzero(np.abs(actions[rows]) > 1.0, axis=1)
@@ -526,7 +539,8 @@ class ScaraTask:
 
     def observation(self, i: int, rng: np.random.Generator) -> np.ndarray:
         """Robot i's observation as the agent gets it (a copy): with sensor noise, then
-        observation noise, drawn from ``rng`` (the episode's generator) where configured."""
+        observation noise, drawn from ``rng`` (the episode's generator) where configured.
+        """
         options = self.sim_to_real
         if not options.noisy:
             return self.obs[i].copy()
@@ -551,7 +565,8 @@ class ScaraTask:
     def info(self, index: int | None = None) -> dict:
         """The step info of robot ``index`` (Python scalars, the single environment's form, with
         reach_time only on success) or of all robots (arrays, the vector environment's form, with
-        reach_time masked by _reach_time)."""
+        reach_time masked by _reach_time).
+        """
         if index is not None:
             return self._robot_info(index)
         outcomes, robots = self.outcomes, self.robots

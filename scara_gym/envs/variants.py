@@ -1,11 +1,11 @@
 """The cards of the registered variants of the C11 task: ScaraEnv with other registered arguments.
 
-A variant is no class of its own: its id registers :class:`~scara_gym.envs.ScaraEnv` with
-other arguments (an :class:`~scara_gym.envs.config.EnvConfig` value,
+A variant is no class of its own: its id registers `ScaraEnv` with
+other arguments (an `EnvConfig` value,
 ``scara_gym.registration.ENV_VARIANTS``), so everything ScaraEnv does it does, and every
-argument can still be given. Its card (:func:`card_of`) is ScaraEnv's with its own title,
+argument can still be given. Its card (`card_of`) is ScaraEnv's with its own title,
 summary, observation bounds and argument defaults, and its own version history. The goal
-ids' card is :class:`~scara_gym.envs.goal.ScaraGoalEnv`'s (a Dict observation).
+ids' card is `ScaraGoalEnv`'s (a Dict observation).
 """
 
 from __future__ import annotations

@@ -43,7 +43,8 @@ def check_autoreset_mode(autoreset_mode) -> AutoresetMode:
 
 def check_reset_mask(options: dict, num_envs: int, autoreset_mode: AutoresetMode) -> np.ndarray | None:
     """The reset options' "reset_mask" (taken out of ``options``): None, or a bool array of
-    shape (num_envs,) with a True, in "Disabled" autoreset mode only (Gymnasium's rules)."""
+    shape (num_envs,) with a True, in "Disabled" autoreset mode only (Gymnasium's rules).
+    """
     if "reset_mask" not in options:
         return None
     mask = options.pop("reset_mask")
@@ -76,7 +77,7 @@ class ScaraVectorEnv(RobotsSurface, VectorEnv):
     The state surface per robot (``snapshot``/``restore``, ``reset_robot``,
     ``noise_free_observation``, ``targets``, ``episode_params``, the set-point maps) and the
     configuration (``config``, ``params``, ``control_mode`` ...) are documented in
-    :mod:`scara_gym.envs.surface`.
+    `scara_gym.envs.surface`.
     """
 
     metadata = {"autoreset_mode": AutoresetMode.NEXT_STEP, "render_modes": []}
@@ -124,6 +125,7 @@ class ScaraVectorEnv(RobotsSurface, VectorEnv):
 
     # -- episodes ----------------------------------------------------------------------
     def reset(self, *, seed: int | list[int | None] | None = None, options: dict | None = None):
+        """Start every robot's episode (Gymnasium's VectorEnv.reset); seed: one, or one per robot."""
         seeds = vector_seeds(seed, self.num_envs)
         options = checks.mapping("reset options", options, (*RESET_OPTIONS, "reset_mask"))
         mask = check_reset_mask(options, self.num_envs, self.autoreset_mode)
@@ -153,6 +155,7 @@ class ScaraVectorEnv(RobotsSurface, VectorEnv):
 
     # -- stepping ----------------------------------------------------------------------
     def step(self, actions):
+        """One control step of every robot (Gymnasium's VectorEnv.step), the episodes that end reset as the autoreset mode says."""
         if not self._started:
             raise RuntimeError("call reset() before step()")
         task = self._task
@@ -189,7 +192,8 @@ class ScaraVectorEnv(RobotsSurface, VectorEnv):
     def _reset_robots(self, indices) -> None:
         """Autoreset every robot of ``indices`` or none: each next episode is drawn on a copy of
         its robot's generator before any robot changes (the same draws as on the generator
-        itself); a robot whose episode cannot start is named, and no robot is reset."""
+        itself); a robot whose episode cannot start is named, and no robot is reset.
+        """
         drawn = []
         for i in indices:
             rng = copy.deepcopy(self._rngs[i])

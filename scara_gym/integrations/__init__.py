@@ -1,1 +1,1 @@
-"""Adapters to other libraries: :mod:`scara_gym.integrations.sb3` (stable-baselines3)."""
+"""Adapters to other libraries: `scara_gym.integrations.sb3` (stable-baselines3)."""

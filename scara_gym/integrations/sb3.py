@@ -1,7 +1,7 @@
 """stable-baselines3 on the native vector environment.
 
-SB3 does not accept Gymnasium vector environments; :class:`SB3VecEnv` presents a
-:class:`~scara_gym.envs.vector.ScaraVectorEnv` (in "SameStep" autoreset mode) through
+SB3 does not accept Gymnasium vector environments; `SB3VecEnv` presents a
+`ScaraVectorEnv` (in "SameStep" autoreset mode) through
 SB3's ``VecEnv`` interface: ``terminal_observation``, ``TimeLimit.truncated``,
 ``is_success`` and Monitor-style ``episode`` statistics (r, l, t) in the infos of
 finished episodes, as SB3's own wrappers produce them (so no VecMonitor is needed).
@@ -22,19 +22,21 @@ from stable_baselines3.common.vec_env.base_vec_env import VecEnv
 
 from scara_gym.envs.vector import ScaraVectorEnv
 from scara_gym.model import checks
+from scara_gym.model.checks import UserError
 from scara_gym.registration import ENV_KWARGS, GOAL_ENV_IDS, LATEST_ENV_ID
 
 
 class SB3VecEnv(VecEnv):
     """``SB3VecEnv(num_envs=8, env_id="Scara-C11-v2", control_mode="pd", ...)``: the robots of a
     registered id (the arguments it registers; default the latest id), further arguments as
-    ScaraVectorEnv's over them."""
+    ScaraVectorEnv's over them.
+    """
 
     def __init__(self, num_envs: int = 8, env_id: str = LATEST_ENV_ID, **kwargs: Any) -> None:
         checks.choice("env_id", env_id, tuple(i for i in ENV_KWARGS if i not in GOAL_ENV_IDS))
         if "autoreset_mode" in kwargs:
-            raise ValueError("autoreset_mode: SB3VecEnv sets 'SameStep' itself (SB3 reads the final observation "
-                             "in the step that ends an episode)")
+            raise UserError("autoreset_mode: SB3VecEnv sets 'SameStep' itself (SB3 reads the final observation "
+                            "in the step that ends an episode)")
         self.env_id = env_id
         self.venv = ScaraVectorEnv(num_envs=num_envs, autoreset_mode="SameStep", **{**ENV_KWARGS[env_id], **kwargs})
         super().__init__(num_envs, self.venv.single_observation_space, self.venv.single_action_space)
@@ -44,6 +46,7 @@ class SB3VecEnv(VecEnv):
         self._started = time.time()
 
     def reset(self):
+        """Start every robot's episode (SB3's VecEnv.reset), with the seeds and options set for it; the observations."""
         seeds = self._seeds
         seed = None if all(s is None for s in seeds) else seeds
         obs, info = self.venv.reset(seed=seed)
@@ -55,9 +58,11 @@ class SB3VecEnv(VecEnv):
         return obs
 
     def step_async(self, actions: np.ndarray) -> None:
+        """Keep the actions for step_wait (SB3's VecEnv API)."""
         self._actions = np.asarray(actions)
 
     def step_wait(self):
+        """Step every robot with the kept actions (SB3's VecEnv API): observations, rewards, dones, infos."""
         obs, reward, terminated, truncated, info = self.venv.step(self._actions)
         dones = terminated | truncated
         self._returns += reward
@@ -77,18 +82,23 @@ class SB3VecEnv(VecEnv):
         return obs, reward.astype(np.float32), dones, infos
 
     def close(self) -> None:
+        """Close the native vector env."""
         self.venv.close()
 
     def get_attr(self, attr_name: str, indices=None) -> list[Any]:
+        """An attribute of the native vector env, once per robot asked for (SB3's VecEnv API)."""
         return [getattr(self.venv, attr_name) for _ in self._get_indices(indices)]
 
     def set_attr(self, attr_name: str, value: Any, indices=None) -> None:
+        """Refused (SB3's VecEnv API): the robots share one configuration; build a new SB3VecEnv instead."""
         raise AttributeError("the robots of a native vector environment share one configuration; "
                              "build a new SB3VecEnv instead of setting attributes")
 
     def env_method(self, method_name: str, *method_args, indices=None, **method_kwargs) -> list[Any]:
+        """Call a method of the native vector env, its result once per robot asked for (SB3's VecEnv API)."""
         method = getattr(self.venv, method_name)
         return [method(*method_args, **method_kwargs) for _ in self._get_indices(indices)]
 
     def env_is_wrapped(self, wrapper_class, indices=None) -> list[bool]:
+        """False for every robot: the native vector env has no Gymnasium wrappers (SB3's VecEnv API)."""
         return [False for _ in self._get_indices(indices)]

@@ -2,12 +2,12 @@
 
 numpy and numba only: nothing here imports gymnasium or torch (a test reads the imports).
 
-- :mod:`~scara_gym.model.params`: the frozen parameter tree with units and ranges;
-- :mod:`~scara_gym.model.records`: the record types of the compiled core;
-- :mod:`~scara_gym.model.dynamics`: the model as pure compiled functions;
-- :mod:`~scara_gym.model.integrator`: Dormand-Prince 5(4) with located mode switches;
-- :mod:`~scara_gym.model.simulator`: :class:`Simulator`, :class:`Trajectory`, :class:`Event`;
-- :mod:`~scara_gym.model.compilation`: JIT options and the source-keyed numba cache.
+- `params`: the frozen parameter tree with units and ranges;
+- `records`: the record types of the compiled core;
+- `dynamics`: the model as pure compiled functions;
+- `integrator`: Dormand-Prince 5(4) with located mode switches;
+- `simulator`: `Simulator`, `Trajectory`, `Event`;
+- `compilation`: JIT options and the source-keyed numba cache.
 """
 
 from scara_gym.model import compilation  # noqa: F401  (cache locators before any compiled function)

@@ -15,6 +15,29 @@ from typing import Any
 
 import numpy as np
 
+
+class UserError(ValueError):
+    """A value or a request the project refuses: the user's mistake, not a bug.
+
+    Raised by the checks here and by the agents' own (a spec, a run folder, a flag); the
+    command lines turn it into one line and exit status 2, where any other exception is a
+    bug and shows its traceback. A ValueError, so ``except ValueError`` still catches it.
+    """
+
+
+class UserTypeError(UserError, TypeError):
+    """A `UserError` about a value's type (a string where a number goes): a TypeError as well."""
+
+
+class UserKeyError(UserError, KeyError):
+    """A `UserError` that names something not there (a parameter, a hyperparameter block, a
+    shipped solution): a KeyError (and a LookupError) as well, shown without KeyError's quotes.
+    """
+
+    def __str__(self) -> str:
+        return str(self.args[0]) if len(self.args) == 1 else super().__str__()
+
+
 # integration tolerances that keep the physics honest: looser ones let steps jump over
 # the 2 cm critical band and overflow the event log; tighter ones ask for more digits
 # than float64 has (rtol 1e-14 already needs ~120,000 right-hand sides for task b)
@@ -53,12 +76,12 @@ def real(name: str, value: Any, low: float = -math.inf, high: float = math.inf, 
     elif is_real(value):
         number = float(value)
     else:
-        raise TypeError(f"{_real_text(name, low, high, unit, low_open, high_open)}, got {value!r} "
-                        f"({type(value).__name__})")
+        raise UserTypeError(f"{_real_text(name, low, high, unit, low_open, high_open)}, got {value!r} "
+                            f"({type(value).__name__})")
     inside = math.isfinite(number) and (low < number if low_open else low <= number) and (
         number < high if high_open else number <= high)
     if not inside:
-        raise ValueError(f"{_real_text(name, low, high, unit, low_open, high_open)}, got {value!r}")
+        raise UserError(f"{_real_text(name, low, high, unit, low_open, high_open)}, got {value!r}")
     return number
 
 
@@ -71,15 +94,15 @@ def integer(name: str, value: Any, low: int, high: int | None = None) -> int:
     text = f"{name} must be an integer >= {low}" if high is None else \
         f"{name} must be an integer in [{low}, {high}]"
     if isinstance(value, (bool, np.bool_)) or not isinstance(value, (numbers.Integral, np.integer)):
-        raise TypeError(f"{text}, got {value!r} ({type(value).__name__})")
+        raise UserTypeError(f"{text}, got {value!r} ({type(value).__name__})")
     if value < low or (high is not None and value > high):
-        raise ValueError(f"{text}, got {value!r}")
+        raise UserError(f"{text}, got {value!r}")
     return int(value)
 
 
 def flag(name: str, value: Any) -> bool:
     if not isinstance(value, (bool, np.bool_)):
-        raise TypeError(f"{name} must be True or False, got {value!r}")
+        raise UserTypeError(f"{name} must be True or False, got {value!r}")
     return bool(value)
 
 
@@ -87,7 +110,7 @@ def choice(name: str, value: Any, allowed) -> Any:
     """One of the allowed values, of the same type (so 1 is not True and not "1")."""
     allowed = tuple(allowed)
     if not any(type(value) is type(a) and value == a for a in allowed):
-        raise ValueError(f"{name} must be one of {', '.join(repr(a) for a in allowed)}, got {value!r}")
+        raise UserError(f"{name} must be one of {', '.join(repr(a) for a in allowed)}, got {value!r}")
     return value
 
 
@@ -95,25 +118,26 @@ def real_array(name: str, value: Any, shape: tuple[int, ...], *, unit: str = "",
                range_text: str = "") -> np.ndarray:
     """A float64 C-contiguous array of the given shape, finite and (where bounds are given)
     inside [low, high] elementwise. Lists, tuples and arrays of real numbers are accepted;
-    complex, boolean, string and object contents are not."""
+    complex, boolean, string and object contents are not.
+    """
     what = f"{name} must be {_count(shape)} finite numbers{_unit(unit)}"
     if range_text:
         what += f" with {range_text}"
     try:
         array = np.asarray(value)
     except (TypeError, ValueError):
-        raise TypeError(f"{what}, got {value!r}") from None
+        raise UserTypeError(f"{what}, got {value!r}") from None
     if array.dtype.kind not in "iuf":
         kind = {"c": "complex", "b": "boolean", "U": "text", "S": "bytes", "O": "non-numeric"}.get(
             array.dtype.kind, array.dtype.name)
-        raise TypeError(f"{what}, got {kind} values {value!r}")
+        raise UserTypeError(f"{what}, got {kind} values {value!r}")
     if array.shape != shape:
-        raise ValueError(f"{what} (shape {shape}), got shape {array.shape}")
+        raise UserError(f"{what} (shape {shape}), got shape {array.shape}")
     array = np.ascontiguousarray(array, dtype=np.float64)
     if not np.isfinite(array).all():
-        raise ValueError(f"{what}, got {_show(array)}")
+        raise UserError(f"{what}, got {_show(array)}")
     if low is not None and (np.any(array < low) or np.any(array > high)):
-        raise ValueError(f"{what}, got {_show(array)}")
+        raise UserError(f"{what}, got {_show(array)}")
     return array
 
 
@@ -137,7 +161,8 @@ TOLERANCE_WEIGHT_RANGE = (1e-3, 1e3)
 
 def tolerance_weights(value: Any, groups: dict) -> np.ndarray:
     """A factor on rtol and atol per state component from None (all 1) or a dict of group name
-    (a key of groups, which maps it to its slice of the state) to a factor in TOLERANCE_WEIGHT_RANGE."""
+    (a key of groups, which maps it to its slice of the state) to a factor in TOLERANCE_WEIGHT_RANGE.
+    """
     weights = np.ones(max(part.stop for part in groups.values()))
     for group, factor in mapping("tolerance_weights", value, groups).items():
         weights[groups[group]] = real(f"tolerance_weights[{group!r}]", factor, *TOLERANCE_WEIGHT_RANGE)
@@ -149,11 +174,11 @@ def mapping(name: str, value: Any, allowed_keys) -> dict:
     if value is None:
         return {}
     if not isinstance(value, Mapping):
-        raise TypeError(f"{name} must be a dict (or None) with keys among {sorted(allowed_keys)}, "
-                        f"got {value!r}")
+        raise UserTypeError(f"{name} must be a dict (or None) with keys among {sorted(allowed_keys)}, "
+                            f"got {value!r}")
     unknown = [key for key in value if key not in allowed_keys]
     if unknown:
-        raise ValueError(f"unknown {name} {sorted(map(str, unknown))}; allowed: {sorted(allowed_keys)}")
+        raise UserError(f"unknown {name} {sorted(map(str, unknown))}; allowed: {sorted(allowed_keys)}")
     return dict(value)
 
 

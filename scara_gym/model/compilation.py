@@ -66,7 +66,8 @@ def source_key(package_dir: Path = PACKAGE_DIR, sources=COMPILED_SOURCES) -> byt
 
 class _KeyedStamp:
     """Mixin for numba's source-file locators: only this package's files, stamped by the key
-    of all compiled sources instead of the defining file alone."""
+    of all compiled sources instead of the defining file alone.
+    """
 
     package_dir = PACKAGE_DIR
     sources = COMPILED_SOURCES
@@ -105,7 +106,8 @@ def install_locators(*locators) -> None:
 
 class _FirstCompileMessage(event.Listener):
     """Prints COMPILE_MESSAGE once per process, when numba starts compiling (not loading)
-    a function of this package."""
+    a function of this package.
+    """
 
     def __init__(self) -> None:
         self.printed = False

@@ -3,7 +3,7 @@
 Plain float arithmetic, compiled with numba (``cache=True`` keeps the machine code on
 disk). Every function is also callable from Python, which is how the tests check them
 one by one. ``p`` is a ``PARAMS`` record (``ScaraParams.to_record()``), ``robot`` a
-``ROBOT`` record and ``config`` a ``CONFIG`` record of :mod:`scara_gym.model.records`;
+``ROBOT`` record and ``config`` a ``CONFIG`` record of `scara_gym.model.records`;
 the state vector ``x`` is addressed through the offsets of ``STATE``. Equation numbers
 are those of the seed paper.
 """
@@ -99,7 +99,8 @@ def solve_linear(a, b):
 def accelerations_implicit(q2, v1, v2, t1, t2, t3, p):
     """q'' from M q'' = b by a linear solve (implicit form): solve_linear(mass_matrix, bias_vector)
     written out on scalars, every operation of the elimination kept (those on M's zero entries
-    too), so that it gives the same bits and allocates nothing (a GPU device function)."""
+    too), so that it gives the same bits and allocates nothing (a GPU device function).
+    """
     c = math.cos(q2)
     s = math.sin(q2)
     a00, a01, a02 = p.theta1 + 2.0 * p.theta2 * c + p.theta3, p.theta2 * c + p.theta3, 0.0
@@ -232,7 +233,8 @@ def pd_linear_voltage(robot, x, p, axis):
 def mode_voltage(x, robot, p, config, axis, limit):
     """U_i in the robot's hybrid mode. With exact_switches the PD law's saturation is a
     located mode (robot.saturation), so that the right-hand side is smooth between
-    switches; without, the law is clipped at every evaluation (a kink inside steps)."""
+    switches; without, the law is clipped at every evaluation (a kink inside steps).
+    """
     if config.control != CONTROL_PD:
         return robot.command[axis] * limit
     u = pd_linear_voltage(robot, x, p, axis)
@@ -254,7 +256,8 @@ def voltages(x, robot, p, config, out):
 @njit(**JIT_INLINE)
 def applied_voltages(x, robot, p, config, out):
     """voltages() as reported: within +-limit also where a located saturation switch lies
-    a rounding error away (the mode's linear law may then exceed the limit by ~1e-9 V)."""
+    a rounding error away (the mode's linear law may then exceed the limit by ~1e-9 V).
+    """
     widened = is_widened(robot, config)
     for axis in range(3):
         limit = voltage_limit(p, axis, widened)
@@ -265,7 +268,8 @@ def applied_voltages(x, robot, p, config, out):
 @njit(**JIT)
 def settle_saturation(x, robot, p, config):
     """The PD saturation modes the state implies (exact_switches; else all linear): at the
-    start of every call, since a new set-point moves the law, and after every event."""
+    start of every call, since a new set-point moves the law, and after every event.
+    """
     exact_pd = config.exact_switches and config.control == CONTROL_PD
     widened = is_widened(robot, config)
     for axis in range(3):

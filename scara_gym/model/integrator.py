@@ -13,7 +13,7 @@ Error control is scipy's: RMS norm of the embedded error over
 ``atol + rtol * max(|y_old|, |y_new|)``, so "the same tolerances" means the same
 thing here and in ``solve_ivp``.
 
-Interfaces are the records of :mod:`scara_gym.model.records`: ``integrate(robot, p,
+Interfaces are the records of `scara_gym.model.records`: ``integrate(robot, p,
 config, t_end, log, samples)`` advances one ``ROBOT`` record under a ``PARAMS`` and a
 ``CONFIG`` record, writes events to ``log`` (an ``EVENT`` array) and, unless ``samples``
 is None, samples to a ``SAMPLE`` array. Its only allocation is one fixed-size work
@@ -282,7 +282,8 @@ def dense_output(x, h, k, theta, out):
 
 def _dense_slope() -> float:
     """K with |d/dtheta of the dense output| <= K h max_s |k_s| on [0, 1]: the sum over the
-    stages of the largest Bernstein coefficient of each weight's derivative (a cubic)."""
+    stages of the largest Bernstein coefficient of each weight's derivative (a cubic).
+    """
     total = 0.0
     for p0, p1, p2, p3 in RK_P:
         total += max(abs(p0), abs(p0 + 2 * p1 / 3), abs(p0 + (4 * p1 + 3 * p2) / 3),
@@ -297,7 +298,8 @@ def _bend_bounds(pieces: int = 256) -> np.ndarray:
     """M_s >= max over [0, 1] of |b_s(theta) - theta b_s(1)|, b_s stage s's dense weight: the
     largest Bernstein coefficient over `pieces` subintervals (a rigorous bound, within 0.1 %
     of the maximum). Since the weights sum to theta, the dense output departs from the chord
-    x + theta (y_new - x) by at most h sum_s M_s |k_s - k_0| in each state."""
+    x + theta (y_new - x) by at most h sum_s M_s |k_s - k_0| in each state.
+    """
     bounds = np.zeros(len(RK_P))
     for s, row in enumerate(RK_P):
         power = np.zeros(5)  # coefficients of theta^0..theta^4
@@ -321,7 +323,8 @@ STACK_DEPTH = 64           # intervals of the in-step search (it needs about log
 @njit(**JIT_BORROW)
 def dense_coefficients(h, k, coeffs):
     """coeffs[j, i]: the coefficient of theta^(j+1) in the dense output of state i (a quartic
-    in theta with constant term x_i), for the positions, rates and currents."""
+    in theta with constant term x_i), for the positions, rates and currents.
+    """
     for i in range(CURRENT + 3):
         for j in range(4):
             coeffs[j, i] = h * (k[0, i] * RK_P[0, j] + k[2, i] * RK_P[2, j] + k[3, i] * RK_P[3, j]
@@ -332,7 +335,8 @@ def dense_coefficients(h, k, coeffs):
 def affine_bernstein(g0, i1, c1, i2, c2, coeffs):
     """Bernstein coefficients b1..b4 (b0 = g0) on [0, 1] of an event function affine in the
     state: along the step it is the quartic g0 + sum_j (c1 coeffs[j, i1] + c2 coeffs[j, i2])
-    theta^(j+1) (i2 < 0: one term)."""
+    theta^(j+1) (i2 < 0: one term).
+    """
     p1 = c1 * coeffs[0, i1] + (c2 * coeffs[0, i2] if i2 >= 0 else 0.0)
     p2 = c1 * coeffs[1, i1] + (c2 * coeffs[1, i2] if i2 >= 0 else 0.0)
     p3 = c1 * coeffs[2, i1] + (c2 * coeffs[2, i2] if i2 >= 0 else 0.0)
@@ -347,7 +351,8 @@ def first_root_affine(g0, i1, c1, i2, c2, coeffs, h, stack, bracket):
     g(0) = g0 >= 0 (see affine_bernstein). Bernstein coefficients bound it on an interval
     (all >= 0: no root there; one sign change: exactly one root). True with bracket[0:2] =
     (lo, hi) around the first root; False when there is none, or only a dip shorter than
-    SEARCH_RESOLUTION. The usual case, no root, is decided here without a call."""
+    SEARCH_RESOLUTION. The usual case, no root, is decided here without a call.
+    """
     b1, b2, b3, b4 = affine_bernstein(g0, i1, c1, i2, c2, coeffs)
     if min(b1, b2, b3, b4) >= 0.0:
         return False
@@ -360,7 +365,8 @@ def affine_root(g0, i1, c1, i2, c2, x, y_new, bend, h, k, coeffs, ready, stack, 
     from the chord between its end values by at most |c1| bend[i1] + |c2| bend[i2] (see
     BEND), so a step whose end values both exceed that has no root, and needs no dense
     coefficients (computed once per step when one is needed). Returns (found, ready: the
-    coefficients are computed)."""
+    coefficients are computed).
+    """
     g1 = g0 + c1 * (y_new[i1] - x[i1]) + (c2 * (y_new[i2] - x[i2]) if i2 >= 0 else 0.0)
     if min(g0, g1) >= abs(c1) * bend[i1] + (abs(c2) * bend[i2] if i2 >= 0 else 0.0):
         return False, ready
@@ -378,7 +384,8 @@ def slow_root_affine(g0, i1, c1, i2, c2, h, k, coeffs, ready, stack, bracket):
 @njit(**JIT_BORROW)
 def refine_root_affine(g0, b1, b2, b3, b4, h, stack, bracket):
     """first_root_affine's search: de Casteljau halving of the undecided intervals, leftmost
-    first."""
+    first.
+    """
     top = 0
     stack[0, 0], stack[0, 1] = 0.0, 1.0  # interval start and width in theta, then its Bernstein coefficients
     stack[0, 2], stack[0, 3], stack[0, 4], stack[0, 5], stack[0, 6] = g0, b1, b2, b3, b4
@@ -416,7 +423,8 @@ def first_root_lipschitz(e, g0, g1, slope, x, h, k, robot, p, config, volts, g_t
     """Bracket the first root in [0, 1] of event function e, not affine in the state, given
     g(0) = g0 >= 0, g(1) = g1 and |dg/dtheta| <= slope: an interval whose end values a, b
     satisfy a + b >= slope * width holds no root; the others are halved, leftmost first, with
-    g evaluated on the dense output. True with bracket[0:4] = (lo, hi, g(lo), g(hi))."""
+    g evaluated on the dense output. True with bracket[0:4] = (lo, hi, g(lo), g(hi)).
+    """
     top = 0
     stack[0, 0], stack[0, 1], stack[0, 2], stack[0, 3] = 0.0, 1.0, g0, g1
     while top >= 0:
@@ -449,7 +457,8 @@ def chord_clear(e, g0, g1, x, y_new, bend, p):
     position departs from its chord by at most bend (see BEND), so it is within theta |dq| +
     bend of its start and (1 - theta) |dq| + bend of its end; g is Lipschitz in the positions
     (the tip's x with constants l1 and l2, min, max and abs with 1), so with A and B those
-    terms through g, g(theta) >= max(g0 - theta A, g1 - (1 - theta) A) - B >= (g0 + g1 - A) / 2 - B."""
+    terms through g, g(theta) >= max(g0 - theta A, g1 - (1 - theta) A) - B >= (g0 + g1 - A) / 2 - B.
+    """
     dq1, dq2, dq3 = y_new[Q] - x[Q], y_new[Q + 1] - x[Q + 1], y_new[Q + 2] - x[Q + 2]
     b1, b2, b3 = bend[Q], bend[Q + 1], bend[Q + 2]
     if e == E_TARGET:
@@ -470,7 +479,8 @@ def search_switches(x, y_new, h, k, robot, p, config, volts, g_old, g_new, g_try
     refinement (brackets rows: lo, hi, g(lo), g(hi), in theta). Switches whose event
     function is affine in the state (current limits, PD saturation, wall height) are
     bracketed exactly on the dense output's quartic; the others (critical, wall side,
-    target) with a bound on their slope. True when any switch was found."""
+    target) with a bound on their slope. True when any switch was found.
+    """
     for i in range(Q, Q + 3):  # h max_s |k_s|: with DENSE_SLOPE, a bound on each position's slope
         reach[i] = abs(k[0, i])
         for stage in range(2, 7):
@@ -574,7 +584,8 @@ def search_switches(x, y_new, h, k, robot, p, config, volts, g_old, g_new, g_try
 @njit(**JIT_BORROW)
 def initial_step(x, f0, robot, p, config, volts, scale, y1, f1):
     """Hairer's starting step, as scipy's select_initial_step (order 5); scale, y1 and f1
-    are work vectors of the state's size."""
+    are work vectors of the state's size.
+    """
     n = x.shape[0]
     rtol, atol, weights = config.rtol, config.atol, config.tolerance_weights
     for i in range(n):
@@ -636,7 +647,8 @@ def integrate(robot, p, config, t_end, log, samples):
 @njit(**JIT_BORROW)
 def integrate_with(robot, p, config, t_end, log, samples, workspace):
     """integrate() in the given work arrays (new_workspace): it allocates nothing and assigns
-    no slices, so that numba-cuda compiles it as a device function."""
+    no slices, so that numba-cuda compiles it as a device function.
+    """
     return integrate_timed(robot, p, config, t_end, log, samples, workspace, None)
 
 
@@ -661,7 +673,8 @@ N_TIMERS = 4  # the environment step adds its total (envs.core.T_STEP)
 def integrate_timed(robot, p, config, t_end, log, samples, workspace, timers):
     """integrate_with, and with timers (an int64 array, not None) the cycles spent in the
     parts named by T_SEARCH and T_LOCATE added to it. With timers None numba prunes every
-    timer branch before compiling: integrate_with's machine code has no trace of them."""
+    timer branch before compiling: integrate_with's machine code has no trace of them.
+    """
     n = N_STATE
     work, small, stack, triggered = workspace
     k = work[:7]
@@ -840,7 +853,8 @@ def integrate_timed(robot, p, config, t_end, log, samples, workspace, timers):
 @njit(**JIT)
 def rhs_cycles(states, robot, p, config, repeats):
     """Cycles per right-hand side on the given states (rows), in the robot's modes: the unit
-    of the benchmark's cost breakdown. Returns (cycles, a checksum that keeps the loop)."""
+    of the benchmark's cost breakdown. Returns (cycles, a checksum that keeps the loop).
+    """
     out = np.empty(N_STATE)
     volts = np.empty(3)
     checksum = 0.0

@@ -10,8 +10,8 @@ seed's 1.4555 s.
 
 Every leaf field carries its unit and allowed range in ``metadata``; the
 validation message names the field path and that range. The hot path does not
-see these objects: :meth:`ScaraParams.to_record` packs them into the ``PARAMS``
-record of :mod:`scara_gym.model.records`.
+see these objects: `ScaraParams.to_record` packs them into the ``PARAMS``
+record of `scara_gym.model.records`.
 """
 
 from __future__ import annotations
@@ -25,6 +25,7 @@ from typing import Any
 import numpy as np
 
 from scara_gym.model import checks
+from scara_gym.model.checks import UserError, UserKeyError, UserTypeError
 from scara_gym.model.records import PARAMS
 
 
@@ -32,7 +33,8 @@ def _quantity(default: float, unit: str, low: float, high: float, doc: str = "",
               low_open: bool = False) -> Any:
     """A scalar field: its unit and allowed interval [low, high] (open at low if low_open)
     in ``metadata``. The intervals keep every quantity physical and float64 arithmetic far
-    from overflow; they span about three decades around the C11 values."""
+    from overflow; they span about three decades around the C11 values.
+    """
     return field(default=default, metadata={"unit": unit, "range": (low, high, low_open), "doc": doc})
 
 
@@ -118,7 +120,7 @@ class AxisParams(_Validated):
         super().__post_init__()
         # the explicit integrator resolves the motor's electrical transient (eigenvalue -R/L)
         if self.inductance / self.resistance < MIN_ELECTRICAL_TIME_CONSTANT:
-            raise ValueError(
+            raise UserError(
                 f"AxisParams: inductance / resistance (the electrical time constant) must be >= "
                 f"{MIN_ELECTRICAL_TIME_CONSTANT:g} s, got {self.inductance!r} H / {self.resistance!r} Ohm "
                 f"= {self.inductance / self.resistance:.3g} s (C11: 5e-4 to 1.9e-3 s)")
@@ -180,14 +182,14 @@ class ScaraParams:
     def __post_init__(self) -> None:
         for name, cls in (("arm", ArmParams), ("task", TaskParams), ("obstacle", ObstacleParams)):
             if not isinstance(getattr(self, name), cls):
-                raise TypeError(f"ScaraParams.{name} must be a {cls.__name__}, got {getattr(self, name)!r}")
+                raise UserTypeError(f"ScaraParams.{name} must be a {cls.__name__}, got {getattr(self, name)!r}")
         axes = tuple(self.axes) if isinstance(self.axes, (tuple, list)) else ()
         if len(axes) != 3 or not all(isinstance(a, AxisParams) for a in axes):
-            raise TypeError(f"ScaraParams.axes must be 3 AxisParams, got {self.axes!r}")
+            raise UserTypeError(f"ScaraParams.axes must be 3 AxisParams, got {self.axes!r}")
         object.__setattr__(self, "axes", axes)
         # th1 th3 - th2^2 cos^2 q2 > 0 for every q2 is what makes M invertible.
         if self.arm.theta1 * self.arm.theta3 - self.arm.theta2**2 <= 0:
-            raise ValueError("ScaraParams.arm: th1*th3 - th2^2 must be > 0 (mass matrix singular)")
+            raise UserError("ScaraParams.arm: th1*th3 - th2^2 must be > 0 (mass matrix singular)")
 
     @property
     def vertical_mass(self) -> float:
@@ -196,10 +198,12 @@ class ScaraParams:
 
     @property
     def voltage_limits(self) -> np.ndarray:
+        """The axes' armature voltage limits Umax [V], shape (3,)."""
         return np.array([a.voltage_limit for a in self.axes])
 
     @property
     def current_limits(self) -> np.ndarray:
+        """The axes' armature current limits Imax [A], shape (3,)."""
         return np.array([a.current_limit for a in self.axes])
 
     def replace(self, overrides: Mapping[str, Any] | None = None, **kwargs: Any) -> ScaraParams:
@@ -210,16 +214,17 @@ class ScaraParams:
             **kwargs: more overrides, a keyword per path without a dot (e.g. a whole ``task=...``).
 
         Returns:
-            The new, validated ScaraParams (a bad value raises ValueError naming its path and range)."""
+            The new, validated ScaraParams (a bad value raises ValueError naming its path and range).
+        """
         if overrides is not None and not isinstance(overrides, Mapping):
-            raise TypeError(f"parameter overrides must be a dict of dotted paths -> values, e.g. "
-                            f"{{'arm.load_mass': 1.0}}, got {overrides!r}")
+            raise UserTypeError(f"parameter overrides must be a dict of dotted paths -> values, e.g. "
+                                f"{{'arm.load_mass': 1.0}}, got {overrides!r}")
         items = dict(overrides or {})
         items.update(kwargs)
         for path in items:
             if not isinstance(path, str):
-                raise TypeError(f"parameter override keys must be dotted paths such as 'arm.load_mass', "
-                                f"got {path!r}")
+                raise UserTypeError(f"parameter override keys must be dotted paths such as 'arm.load_mass', "
+                                    f"got {path!r}")
         if len(items) > 1:
             try:  # one new node per changed subtree (per-episode draws change a dozen leaves)
                 return _replace_tree(self, _path_tree(items))
@@ -264,7 +269,7 @@ def _path_tree(items: Mapping[str, Any]) -> dict:
         for part in path.split("."):
             node = node.setdefault(part, {})
         if node:
-            raise ValueError(f"override {path!r} is both a leaf and a subtree")
+            raise UserError(f"override {path!r} is both a leaf and a subtree")
         node[_LEAF] = value
     return tree
 
@@ -272,7 +277,7 @@ def _path_tree(items: Mapping[str, Any]) -> dict:
 def _replace_tree(node: Any, tree: dict) -> Any:
     if _LEAF in tree:
         if len(tree) > 1:
-            raise ValueError("a leaf and its subtree overridden together")
+            raise UserError("a leaf and its subtree overridden together")
         return tree[_LEAF]
     if isinstance(node, tuple) and not dataclasses.is_dataclass(node):
         items = list(node)
@@ -294,15 +299,15 @@ def _replace_path(node: Any, parts: list[str], value: Any, full: str) -> Any:
     head, rest = parts[0], parts[1:]
     if isinstance(node, tuple) and not dataclasses.is_dataclass(node):
         if not head.isdigit() or int(head) >= len(node):
-            raise KeyError(f"unknown parameter {full!r}: index {head!r} must be 0..{len(node) - 1}")
+            raise UserKeyError(f"unknown parameter {full!r}: index {head!r} must be 0..{len(node) - 1}")
         items = list(node)
         items[int(head)] = _replace_path(items[int(head)], rest, value, full) if rest else value
         return tuple(items)
     if not dataclasses.is_dataclass(node):
-        raise KeyError(f"unknown parameter {full!r}")
+        raise UserKeyError(f"unknown parameter {full!r}")
     names = [f.name for f in dataclasses.fields(node)]
     if head not in names:
-        raise KeyError(f"unknown parameter {full!r}: {type(node).__name__} has {', '.join(names)}")
+        raise UserKeyError(f"unknown parameter {full!r}: {type(node).__name__} has {', '.join(names)}")
     new = _replace_path(getattr(node, head), rest, value, full) if rest else value
     return dataclasses.replace(node, **{head: new})
 
@@ -312,12 +317,13 @@ DEFAULT_PARAMS = ScaraParams()
 
 def resolve_params(params: ScaraParams | Mapping[str, Any] | None) -> ScaraParams:
     """A ScaraParams from None (the C11 defaults), a ScaraParams, or a dict of dotted-path
-    overrides of the defaults."""
+    overrides of the defaults.
+    """
     if params is None:
         return DEFAULT_PARAMS
     if isinstance(params, ScaraParams):
         return params
     if isinstance(params, Mapping):
         return DEFAULT_PARAMS.replace(params)
-    raise TypeError(f"params must be a ScaraParams or a dict of dotted-path overrides such as "
-                    f"{{'arm.load_mass': 1.0}}, got {params!r}")
+    raise UserTypeError(f"params must be a ScaraParams or a dict of dotted-path overrides such as "
+                        f"{{'arm.load_mass': 1.0}}, got {params!r}")

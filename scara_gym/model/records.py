@@ -7,7 +7,7 @@ without reference counting). The same dtypes serve a CUDA port: numba.cuda compi
 records alike.
 
 - ``PARAMS``: the model's parameters (``ScaraParams.to_record``), units as in
-  :mod:`scara_gym.model.params`.
+  `scara_gym.model.params`.
 - ``CONFIG``: the switches and tolerances of one simulation.
 - ``ROBOT``: the mutable state of one simulated robot: the state vector, time, command,
   hybrid modes, step size and counters.

@@ -1,8 +1,8 @@
 """Python side of the compiled integrator: configuration, trajectories and events.
 
-:class:`Simulator` owns the arrays one simulation needs and advances a state in
-chunks (the environment calls it once per control step); :func:`simulate` runs
-one segment and returns a :class:`Trajectory`.
+`Simulator` owns the arrays one simulation needs and advances a state in
+chunks (the environment calls it once per control step); `simulate` runs
+one segment and returns a `Trajectory`.
 """
 
 from __future__ import annotations
@@ -13,6 +13,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from scara_gym.model import checks, records as R
+from scara_gym.model.checks import UserTypeError
 from scara_gym.model.dynamics import tip_positions
 from scara_gym.model.integrator import advance, start
 from scara_gym.model.params import DEFAULT_PARAMS, ScaraParams, resolve_params
@@ -38,12 +39,13 @@ def check_state(name: str, value, size: int = R.N_STATE) -> np.ndarray:
 
 
 def check_tolerance(name: str, value: float) -> float:
-    """rtol or atol inside its allowed range (see :mod:`scara_gym.model.checks`)."""
+    """rtol or atol inside its allowed range (see `scara_gym.model.checks`)."""
     return checks.tolerance(name, value)
 
 
 @dataclass(frozen=True)
 class Event:
+    """A logged event of a simulated run: when, what, and on which axis."""
     time: float
     """[s]"""
     kind: str
@@ -72,14 +74,17 @@ class Trajectory:
 
     @property
     def q(self) -> np.ndarray:
+        """Joint positions (q1, q2, q3) [rad, rad, m], shape (n, 3)."""
         return self.x[:, 0:3]
 
     @property
     def rates(self) -> np.ndarray:
+        """Joint rates (v1, v2, v3) [rad/s, rad/s, m/s], shape (n, 3)."""
         return self.x[:, 3:6]
 
     @property
     def currents(self) -> np.ndarray:
+        """Armature currents (I1, I2, I3) [A], shape (n, 3)."""
         return self.x[:, 6:9]
 
     @property
@@ -94,12 +99,15 @@ class Trajectory:
 
     @property
     def end_time(self) -> float:
+        """The last sample's time [s]."""
         return float(self.t[-1])
 
     def times(self, kind: str) -> list[float]:
+        """The times [s] of the events of one kind (an EVENT_NAMES value)."""
         return [e.time for e in self.events if e.kind == kind]
 
     def first(self, kind: str) -> float | None:
+        """The first time [s] of an event of one kind, or None."""
         found = self.times(kind)
         return found[0] if found else None
 
@@ -110,10 +118,12 @@ class Trajectory:
 
     @property
     def collision_time(self) -> float | None:
+        """The first collision's time [s], or None."""
         return self.first("collision")
 
     @staticmethod
     def concatenate(parts: Sequence[Trajectory], status: str | None = None) -> Trajectory:
+        """One trajectory of consecutive parts (their samples, events and summed stats); status: the last part's unless given."""
         stats = {}
         for part in parts:
             for key, value in part.stats.items():
@@ -207,7 +217,7 @@ class Simulator:
         config["decelerate"] = checks.flag("decelerate", decelerate)
         config["wall"] = checks.flag("wall", wall)
         if isinstance(stop, str) or not isinstance(stop, (tuple, list, set, frozenset)):
-            raise TypeError(f"stop must be a tuple of stop events among {sorted(STOPS)}, got {stop!r}")
+            raise UserTypeError(f"stop must be a tuple of stop events among {sorted(STOPS)}, got {stop!r}")
         mask = 0
         for name in stop:
             mask |= _choice("stop", name, STOPS)
@@ -231,13 +241,16 @@ class Simulator:
 
     @property
     def t(self) -> float:
+        """The simulator's time [s]."""
         return float(self.robot["t"])
 
     @property
     def command(self) -> np.ndarray:
+        """The command held: the set-point q^ ("pd") or the voltages ("voltage"), shape (3,)."""
         return self.robot["command"]
 
     def reset(self, x0, t0: float = 0.0, command=None) -> None:
+        """Start from the state x0 at time t0 [s] (optionally with a command); the counters and the log start empty."""
         robot = self.robot
         x0 = check_state("initial state", x0)
         t0 = checks.real("t0", t0, unit="s")
@@ -255,7 +268,8 @@ class Simulator:
 
     def advance(self, t_end: float, command=None) -> int:
         """Integrate to t_end or the first stop event; returns the kernel status. Raises
-        :class:`SimulationError`, naming the cause, when the integration fails."""
+        `SimulationError`, naming the cause, when the integration fails.
+        """
         if not self._started:
             raise RuntimeError("call reset(x0) before advance()")
         t_end = checks.real("t_end", t_end, self.t, unit="s (not before the simulator's time)")
@@ -268,17 +282,20 @@ class Simulator:
         return status
 
     def status_name(self, status: int) -> str:
+        """The name of a status advance returned (the stop event's, where it stopped on one)."""
         if status == R.STATUS_STOPPED:
             return STOP_NAMES[int(self.robot["stop_event"])]
         return STATUS_NAMES[status]
 
     @property
     def critical(self) -> bool:
+        """Whether the tip is inside the critical band of the wall now."""
         return bool(self.robot["critical"])
 
     def events(self, since: int = 0) -> list[Event]:
         """The logged events; raises when the log overflowed (the stop status and the
-        robot's counters are complete either way)."""
+        robot's counters are complete either way).
+        """
         n = int(self.robot["n_events"])
         if n > len(self.log):
             raise RuntimeError(f"event log overflowed: {n} events, capacity {len(self.log)}; "
@@ -288,6 +305,7 @@ class Simulator:
                       int(e["axis"]) if e["axis"] >= 0 else None) for e in log]
 
     def trajectory(self, status: int, runtime: float = 0.0) -> Trajectory:
+        """The run recorded so far as a Trajectory, with the status advance returned and the runtime [s]."""
         n = int(self.robot["n_samples"])
         samples = self.samples[:n]
         if n and n >= len(self.samples) and self.t > samples["t"][-1]:

@@ -1,23 +1,23 @@
 """The C11 model in CasADi: the symbolic twin of the compiled dynamics, for optimal control.
 
 Everything the compiled core evaluates, as CasADi functions built from the same
-:class:`~scara_gym.model.params.ScaraParams` and the same switches (:func:`symbolic_model`):
+`ScaraParams` and the same switches (`symbolic_model`):
 
-- ``rhs(x, command, modes) -> x'``: :func:`scara_gym.model.dynamics.derivative` in every
+- ``rhs(x, command, modes) -> x'``: `scara_gym.model.dynamics.derivative` in every
   hybrid mode: held currents, the PD law's located saturation (or its clip), the critical
   zone's widened voltage limits and the ``dec`` rule's scaled kinematics;
 - ``voltages(x, command, modes) -> U``: the armature voltages of that mode;
 - ``events(x, command, modes) -> g``: the event functions of
-  :func:`scara_gym.model.integrator.event_values` (positive while the mode holds; the
-  indices ``E_*`` of :mod:`scara_gym.model.records`);
+  `scara_gym.model.integrator.event_values` (positive while the mode holds; the
+  indices ``E_*`` of `scara_gym.model.records`);
 - ``tip(q) -> (x, y, z)``: the forward kinematics of the joint positions;
 - ``free(x, U) -> x'``: the model driven by voltages with the currents free (no hold), on
   the 9 physical states: what a direct transcription integrates, keeping the currents
   inside their limits by a path constraint instead.
 
-``x`` is the state vector of :data:`~scara_gym.model.records.STATE` (10 entries: q, rates,
+``x`` is the state vector of `STATE` (10 entries: q, rates,
 currents, energy); ``modes`` the discrete modes of a ``ROBOT`` record as floats, in the
-order of :data:`MODES`. A test holds every function to the compiled one at random states in
+order of `MODES`. A test holds every function to the compiled one at random states in
 every mode. CasADi is the ``control`` install extra; this module imports it when a model is
 built. Example, a fixed-step integrator of the PD-controlled arm (currents free)::
 
@@ -33,7 +33,7 @@ built. Example, a fixed-step integrator of the PD-controlled arm (currents free)
     step = ca.Function("step", [x, setpoint], [x + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)])
 
 An optimal-control problem uses ``free`` (smooth) with the mode structure as constraints,
-as :mod:`agents.policies.optimal` and :mod:`agents.policies.mpc` do.
+as `agents.policies.optimal` and `agents.policies.mpc` do.
 """
 
 from __future__ import annotations
@@ -45,6 +45,7 @@ import numpy as np
 
 from scara_gym.extras import require
 from scara_gym.model import checks
+from scara_gym.model.checks import UserError, UserTypeError
 from scara_gym.model.params import DEFAULT_PARAMS, ScaraParams
 from scara_gym.model.records import CURRENT, ENERGY, N_EVENTS, N_STATE, RATE, Q
 
@@ -102,17 +103,18 @@ def symbolic_model(params: ScaraParams = DEFAULT_PARAMS, *, control: str = "volt
 
     Returns:
         The SymbolicModel: CasADi functions ``rhs``, ``voltages``, ``events``, ``tip`` and
-        ``free`` (voltages in, currents free), and the ``params`` they were built from."""
+        ``free`` (voltages in, currents free), and the ``params`` they were built from.
+    """
     require("casadi")
     import casadi as ca
 
     if not isinstance(params, ScaraParams):
-        raise TypeError(f"params must be a ScaraParams, got {type(params).__name__}")
+        raise UserTypeError(f"params must be a ScaraParams, got {type(params).__name__}")
     if control not in CONTROLS:
-        raise ValueError(f"control must be one of {CONTROLS}, got {control!r}")
+        raise UserError(f"control must be one of {CONTROLS}, got {control!r}")
     widen, exact_switches = checks.flag("widen", widen), checks.flag("exact_switches", exact_switches)
     if critical_rule not in CRITICAL_RULES:
-        raise ValueError(f"critical_rule must be one of {CRITICAL_RULES}, got {critical_rule!r}")
+        raise UserError(f"critical_rule must be one of {CRITICAL_RULES}, got {critical_rule!r}")
     p = _values(params)
     pd = control == "pd"
     x = ca.SX.sym("x", N_STATE)

@@ -1,8 +1,8 @@
 """What sits between an agent and the environment and reads the task's internals.
 
-- :mod:`~scara_gym.wrappers.residual`: :class:`ResidualSetpoint`, an agent's output as a
+- `residual`: `ResidualSetpoint`, an agent's output as a
   set-point around the target;
-- :mod:`~scara_gym.wrappers.shield`: :class:`Shield`, a model-predictive safety shield for any
+- `shield`: `Shield`, a model-predictive safety shield for any
   policy of the single environment (and any robot of a vector env's task).
 """
 

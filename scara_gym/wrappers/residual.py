@@ -42,6 +42,7 @@ class ResidualSetpoint:
         self.deadzone = float(deadzone)
 
     def __call__(self, obs: np.ndarray, r: np.ndarray) -> np.ndarray:
+        """The set-point action of residual actions r in [-1, 1] on observations (batched or one)."""
         obs = np.atleast_2d(np.asarray(obs, dtype=float))
         r = np.clip(np.atleast_2d(np.asarray(r, dtype=float)), -1.0, 1.0)
         target = obs[:, Q] + obs[:, TARGET_ERROR]
@@ -54,7 +55,8 @@ class ResidualSetpoint:
         raw observations: demonstrations in the agent's own action space. In "voltage" mode the
         set-point is the one for which the held PD law gives the voltage (a saturated voltage,
         |action| >= 0.999, asks ``saturation_margin`` more, so that it stays saturated); r is
-        clipped where the set-point lies beyond target +- residual_scale."""
+        clipped where the set-point lies beyond target +- residual_scale.
+        """
         obs = np.atleast_2d(np.asarray(obs, dtype=float))
         env_actions = np.atleast_2d(np.asarray(env_actions, dtype=float))
         target = obs[:, Q] + obs[:, TARGET_ERROR]

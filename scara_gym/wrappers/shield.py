@@ -26,13 +26,13 @@ Zeilinger 2021) with a *committed* backup:
   rollout that was certified to come to rest clear of it.
 
 Models: the nominal parameters (``params``; None: the episode's own, an exact model) and, with
-``robust`` (a :class:`~scara_gym.envs.randomization.ParameterRanges` argument around them: a preset
+``robust`` (a `ParameterRanges` argument around them: a preset
 name, a dict path -> (low, high) or a ParameterRanges), a certificate for every robot inside the
 ranges, built in two parts (issue 53: finitely many modelled walls let the tool pass above or beyond
 them and sink into a real wall between them):
 
 - **The wall, by construction.** The obstacle's ranges (position, height, critical distance) are
-  not modelled by samples: every model gets one *zone* (:func:`wall_zone`), the band from the
+  not modelled by samples: every model gets one *zone* (`wall_zone`), the band from the
   nearest wall's plane less the largest critical distance to the farthest one's plus it, up to the
   greatest height, ``wall_margin + dynamics_margin`` wider and higher. It holds the critical zone of
   every wall the ranges allow, so it holds every wall. A rollout is rejected the moment a model
@@ -42,9 +42,9 @@ them and sink into a real wall between them):
   robot critical: the widened voltage, the one way the wall enters the dynamics, never acts, and
   the wall's position and height drop out of the dynamics the models must cover.
 - **The dynamics, by models and a margin.** The other ranges (masses, resistances, torque
-  constants, current limits) are modelled by their ends (:func:`range_ends`: every corner for up
+  constants, current limits) are modelled by their ends (`range_ends`: every corner for up
   to three parameters, else each at either end, and the adverse corners where every parameter
-  whose worse end is known sits at it at once: :data:`ADVERSE_ENDS`) and ``robust_samples`` draws.
+  whose worse end is known sits at it at once: `ADVERSE_ENDS`) and ``robust_samples`` draws.
   These do not bound a robot between them exactly (a faster arm also brakes harder: no corner is
   the worst for every move), so the zone reaches ``dynamics_margin`` beyond the walls' critical
   zones: a robot between the models is certified wherever its tip's x and its tool's height stay
@@ -95,7 +95,8 @@ DYNAMICS_MARGIN = 0.005  # [m] the robust zone's allowance for robots between th
 def hold_and_climb(held: np.ndarray, target: np.ndarray, lowest_height: float = -np.inf) -> np.ndarray:
     """The set-point that holds axes 1 and 2 at ``held`` [rad] and drives axis 3 to its target,
     at least ``lowest_height`` [m]: the braking move of the seed paper's obstacle rule (the
-    ``dec`` heuristic's, and this shield's backup)."""
+    ``dec`` heuristic's, and this shield's backup).
+    """
     return np.array([held[0], held[1], max(target[2], lowest_height)])
 
 
@@ -113,7 +114,8 @@ def adverse_corners(ranges: ParameterRanges) -> list[dict]:
     """The corners of the ranges where every parameter of ADVERSE_ENDS sits at its worse end at
     once, one corner per choice of ends of the EITHER groups (all torque constants at one end
     together; the wall's position at either end). Parameters ADVERSE_ENDS does not name stay
-    nominal."""
+    nominal.
+    """
     fixed, groups = {}, {}
     for path, ends in ranges.ranges.items():
         leaf = path.rsplit(".", 1)[-1]
@@ -139,7 +141,8 @@ def wall_zone(walls, margin: float) -> dict[str, float]:
     ``margin`` [m] to spare: the band from the nearest wall's plane less the largest critical
     distance to the farthest one's plus it, up to the greatest height. A box of walls needs only
     its corners: a zone is the set |x - x_position| < critical_distance, height below the wall's,
-    which grows with the distance and the height, and a band holds the planes between its ends."""
+    which grows with the distance and the height, and a band holds the planes between its ends.
+    """
     walls = np.asarray(walls, dtype=np.float64).reshape(-1, 3)
     if not (np.all(np.isfinite(walls)) and np.isfinite(margin) and margin >= 0):
         raise ValueError(f"wall_zone: walls must be finite (x, height, critical distance) rows and margin >= 0, "
@@ -159,7 +162,8 @@ def split_ranges(ranges: ParameterRanges) -> tuple[dict, dict]:
 def wall_corners(nominal: ScaraParams, wall_ranges: dict) -> list[tuple[float, float, float]]:
     """(x_position, height, critical_distance) of the nominal wall and of every corner of the
     obstacle's ranges (path -> (low, high); its other paths, the widened voltages, act only inside
-    the critical zone, which a certified rollout never enters)."""
+    the critical zone, which a certified rollout never enters).
+    """
     ends = [wall_ranges.get(f"obstacle.{leaf}", (getattr(nominal.obstacle, leaf),) * 2) for leaf in WALL_LEAVES]
     return [wall_row(nominal), *((x, h, d) for x in ends[0] for h in ends[1] for d in ends[2])]
 
@@ -172,7 +176,8 @@ def wall_row(params: ScaraParams) -> tuple[float, float, float]:
 def range_ends(ranges: ParameterRanges) -> list[dict]:
     """The robust shield's fixed models: every corner of the ranges (each path at either end)
     for up to MAX_CORNER_PATHS paths; else each path at either end with the others nominal, and
-    the adverse corners (adverse_corners: the parameters that brake and climb worst, together)."""
+    the adverse corners (adverse_corners: the parameters that brake and climb worst, together).
+    """
     paths = list(ranges.ranges)
     if len(paths) <= MAX_CORNER_PATHS:
         corners = [[]]
@@ -205,7 +210,8 @@ class Shield:
         robust_samples: parameter sets drawn from the ranges (the obstacle's aside: the zone covers them) beside their ends.
         robust_seed: the seed of those draws.
         dynamics_margin: how far beyond the walls' critical zones the robust zone reaches for robots
-            between the models [m] (assumption D of the module docstring)."""
+            between the models [m] (assumption D of the module docstring).
+    """
 
     def __init__(self, env, policy, params: ScaraParams | None = DEFAULT_PARAMS, horizon: int = 200,
                  rest_rate: float = 0.02, hold_tolerance: float = 0.01, wall_margin: float = 0.005,
@@ -268,6 +274,7 @@ class Shield:
         self._own = None            # (an episode's parameters, the exact model's: theirs with the zone)
 
     def reset(self) -> None:
+        """Start an episode: the shielded policy's reset, no intervention counted, no committed backup."""
         if self.policy is not None:
             self.policy.reset()
         self.interventions = 0
@@ -280,7 +287,8 @@ class Shield:
     def at_rest(self, obs: np.ndarray, setpoint: np.ndarray) -> np.ndarray:
         """Per model (rows of obs, in the models' order): at rest at the backup's ``setpoint``,
         clear of the wall (one step of the terminal test; certify also asks for REST_STEPS in a
-        row and a flushed actuator line)."""
+        row and a flushed actuator line).
+        """
         task = self.model_task
         still = np.all(np.abs(obs[:, RATES]) < self.rest_rate, axis=1)
         held = np.all(np.abs(obs[:, Q][:, :2] - setpoint[:2]) < self.hold_tolerance, axis=1)
@@ -296,7 +304,8 @@ class Shield:
 
     def _line_flushed(self, actions: np.ndarray) -> np.ndarray:
         """Per model: the actuator line holds and applies only the backup's ``actions`` (no
-        action of the policy still waiting in it); True without a delay or rate limit."""
+        action of the policy still waiting in it); True without a delay or rate limit.
+        """
         line = self.model_task.actuator
         if line is None:
             return np.ones(len(actions), dtype=bool)
@@ -308,7 +317,8 @@ class Shield:
     def _entered_zone(self, active: np.ndarray) -> bool:
         """Whether an active model was inside its zone at any instant of its last step: critical at
         its end, or a critical switch located during it (the integrator's event log; a log that
-        overflowed counts as entered)."""
+        overflowed counts as entered).
+        """
         robots, log = self.model_task.robots, self.model_task.log
         events = robots["n_events"]
         if np.any(robots["critical"][active] == 1) or np.any(events[active] > log.shape[1]):
@@ -318,7 +328,8 @@ class Shield:
 
     def _begin(self, snapshot: dict) -> list:
         """The models' parameters for this snapshot, their episodes begun where the target or
-        the exact model's parameters changed."""
+        the exact model's parameters changed.
+        """
         task = self.model_task
         own = snapshot["params"]
         if self.exact and self.zone is not None:  # the zone holds the episode's own wall as well
@@ -337,7 +348,8 @@ class Shield:
     def certify(self, snapshot: dict, action: np.ndarray) -> bool:
         """Whether, in every model, ``action`` from ``snapshot`` and then the backup towards
         ``backup_setpoint(snapshot)`` leave the wall untouched and reach the terminal set (or
-        the target) within the horizon."""
+        the target) within the horizon.
+        """
         task = self.model_task
         m = task.num_robots
         for i, p in enumerate(self._begin(snapshot)):
@@ -396,6 +408,7 @@ class Shield:
         return env.setpoint_action(env.noise_free_observation().astype(np.float64), setpoint), True
 
     def __call__(self, obs: np.ndarray) -> np.ndarray:
+        """The shielded policy's action on obs, replaced by the backup's where it cannot be certified."""
         if self.policy is None:
             raise ValueError("Shield: no policy to shield (policy=None is for filter(), shielded training); give "
                              "Shield(env, policy) a policy to call it")

@@ -271,3 +271,31 @@ def test_bench_offpolicy_without_its_packages_names_what_to_install(monkeypatch,
                                                        r"sb3-contrib sbx-rl$", capsys)
     else:
         _refused_in_one_line(["bench", "--offpolicy"], r"--offpolicy needs sbx-rl: pip install sbx-rl$", capsys)
+
+
+@pytest.mark.parametrize("bug", [KeyError("rows"), TypeError("unsupported operand"), ValueError("math domain error")])
+def test_a_genuine_bug_shows_its_traceback_not_a_one_line_exit(bug, monkeypatch, capsys, tmp_path):
+    """Only the project's UserError (raised by its checks) and the documented user errors end in
+    one line: a KeyError, TypeError or ValueError from deeper down is a bug, and propagates."""
+    import agents.cli
+
+    def broken(*args, **kwargs):
+        raise bug
+
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.setattr(agents.cli, "evaluate", broken)
+    with pytest.raises(type(bug)) as raised:
+        run(["evaluate", "--policies", "pd", "--episodes", "1"])
+    assert raised.value is bug
+    assert "error:" not in capsys.readouterr().err
+
+
+def test_the_project_error_is_a_value_error_and_its_kinds_keep_their_builtin_classes():
+    from scara_gym.model.checks import UserError, UserKeyError, UserTypeError, integer
+
+    assert issubclass(UserError, ValueError) and issubclass(UserTypeError, TypeError)
+    assert issubclass(UserKeyError, KeyError) and str(UserKeyError("no such block")) == "no such block"
+    with pytest.raises(UserTypeError, match="seed must be an integer"):
+        integer("seed", 1.5, 0)
+    with pytest.raises(UserError, match="seed must be an integer >= 0, got -1"):
+        integer("seed", -1, 0)

@@ -21,6 +21,8 @@ from scara_gym.extras import require
 require("stable_baselines3")
 from stable_baselines3 import HerReplayBuffer
 
+from scara_gym.model.checks import UserError, UserKeyError
+
 
 class KeptInfoHerReplayBuffer(HerReplayBuffer):
     """``HerReplayBuffer`` that stores, of each step's info, only ``info_keys`` (None: all, as SB3)."""
@@ -29,7 +31,7 @@ class KeptInfoHerReplayBuffer(HerReplayBuffer):
         super().__init__(*args, **kwargs)
         self.info_keys = None if info_keys is None else tuple(info_keys)
         if self.info_keys is not None and not self.copy_info_dict:
-            raise ValueError("info_keys: the buffer keeps infos only with copy_info_dict=True")
+            raise UserError("info_keys: the buffer keeps infos only with copy_info_dict=True")
 
     def add(self, obs, next_obs, action, reward, done, infos) -> None:
         position = self.pos
@@ -37,5 +39,5 @@ class KeptInfoHerReplayBuffer(HerReplayBuffer):
         if self.copy_info_dict and self.info_keys is not None:
             missing = [key for info in infos for key in self.info_keys if key not in info]
             if missing:
-                raise KeyError(f"info_keys: the step info has no {sorted(set(missing))}; it has {sorted(infos[0])}")
+                raise UserKeyError(f"info_keys: the step info has no {sorted(set(missing))}; it has {sorted(infos[0])}")
             self.infos[position] = [{key: info[key] for key in self.info_keys} for info in infos]

@@ -13,6 +13,7 @@ from scara_gym.benchmark.protocol import ENV_ID
 from scara_gym.envs.task import MAX_ROBOTS
 from scara_gym.extras import require
 from scara_gym.model import checks
+from scara_gym.model.checks import UserError, UserKeyError
 
 INTEGERS = {"n_timesteps": 1, "n_envs": 1, "env_threads": 1, "torch_threads": 0, "n_steps": 1, "batch_size": 1,
             "n_epochs": 1, "buffer_size": 1, "learning_starts": 0, "gradient_steps": 1, "eval_freq": 1,
@@ -50,13 +51,13 @@ def load_hyperparams(recipe: str, env_id: str = ENV_ID, control_mode: str = "pd"
     import yaml
 
     if recipe not in FILES:
-        raise ValueError(f"recipe must be one of {sorted(FILES)}, got {recipe!r}")
+        raise UserError(f"recipe must be one of {sorted(FILES)}, got {recipe!r}")
     path = Path(path) if path is not None else HYPERPARAMS / FILES[recipe]
     table = yaml.safe_load(path.read_text())
     key = control_mode if variant is None else f"{control_mode}-{variant}"
     if env_id not in table or key not in table[env_id]:
         known = {k: sorted(v) for k, v in table.items()}
-        raise KeyError(f"no {recipe} hyperparameters for {env_id!r} / {key!r} in {path}; it has {known}")
+        raise UserKeyError(f"no {recipe} hyperparameters for {env_id!r} / {key!r} in {path}; it has {known}")
     if randomize_target and f"{key}-random" in table[env_id]:
         key = f"{key}-random"
     return dict(table[env_id][key])
@@ -79,5 +80,5 @@ def check_hyperparams(hyper: dict) -> dict:
     arch = hyper.get("net_arch")
     if arch is not None and (not isinstance(arch, list) or not arch
                              or not all(isinstance(w, int) and not isinstance(w, bool) and w >= 1 for w in arch)):
-        raise ValueError(f"net_arch must be a list of layer widths >= 1, got {arch!r}")
+        raise UserError(f"net_arch must be a list of layer widths >= 1, got {arch!r}")
     return hyper

@@ -1,4 +1,4 @@
-"""Saved stable-baselines3 models as policies: any run of :func:`agents.algorithms.sb3.training.train`
+"""Saved stable-baselines3 models as policies: any run of `agents.algorithms.sb3.training.train`
 and the agents shipped with the package (``agents/models/NAME``, found by name from anywhere).
 
 Their files are pickle: a folder loads only when it is trusted (agents.files.require_trusted:
@@ -15,6 +15,7 @@ import numpy as np
 
 from agents.files import require_trusted
 from scara_gym.extras import require
+from scara_gym.model.checks import UserError
 from scara_gym.wrappers import ResidualSetpoint
 
 SHIPPED_MODELS = Path(__file__).resolve().parents[2] / "models"
@@ -54,7 +55,7 @@ def resolve_model(name_or_path: str | Path) -> Path:
 
 
 class SB3Policy:
-    """A model saved by :func:`train` (or a shipped one) as an obs -> action policy for one env."""
+    """A model saved by `train` (or a shipped one) as an obs -> action policy for one env."""
 
     def __init__(self, env, model_dir: str | Path, trust: bool = False) -> None:
         model_dir = Path(model_dir)
@@ -67,8 +68,8 @@ class SB3Policy:
         config = checked.json("config.json")
         trained_mode = config["env_kwargs"]["control_mode"]
         if trained_mode != self.env.control_mode:
-            raise ValueError(f"{model_dir} was trained in {trained_mode!r} mode, "
-                             f"the environment is in {self.env.control_mode!r} mode")
+            raise UserError(f"{model_dir} was trained in {trained_mode!r} mode, "
+                            f"the environment is in {self.env.control_mode!r} mode")
         algo = config.get("algo", "ppo")
         # acting needs no replay buffer: a 1-entry plain one (a HER buffer would need the env)
         replay = {"replay_buffer_class": None, "replay_buffer_kwargs": {}, "buffer_size": 1} \

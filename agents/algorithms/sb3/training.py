@@ -1,6 +1,6 @@
 """Resumable stable-baselines3 training (PPO, SAC, TD3) on the native vector environment.
 
-One function, :func:`train`, trains any of the three algorithms from a hyperparameter entry
+One function, `train`, trains any of the three algorithms from a hyperparameter entry
 (RL-Zoo style YAML, ``agents/hyperparams/ALGO.yml``, keyed by env id then control mode):
 
 1. the training env: the registered id's arguments (``ENV_KWARGS``) on the
@@ -12,7 +12,7 @@ One function, :func:`train`, trains any of the three algorithms from a hyperpara
 3. a snapshot every ``snapshot_freq`` steps (``snapshot/``: model, replay buffer, normalization
    statistics, evaluation history, steps and seconds so far), written to a scratch folder
    and swapped in whole, so an interrupted run loses at most one snapshot interval:
-   calling :func:`train` again with the same ``out`` and ``resume=True`` resumes from it;
+   calling `train` again with the same ``out`` and ``resume=True`` resumes from it;
 4. at the end: ``model.zip``, ``vecnormalize.pkl`` (if normalized) and ``config.json``.
 
 A folder that holds a run is refused unless ``resume`` (continue it; a finished one is returned
@@ -55,6 +55,7 @@ from agents.files import (
 from scara_gym.benchmark.protocol import ENV_ID
 from scara_gym.extras import require
 from scara_gym.model import checks
+from scara_gym.model.checks import UserError
 from scara_gym.registration import ENV_KWARGS, GOAL_ENV_IDS
 
 ALGORITHMS = ("ppo", "sac", "td3")
@@ -129,7 +130,7 @@ def algorithm_kwargs(algo: str, hyper: dict, n_actions: int) -> dict:
         noise = {"normal": NormalActionNoise, "ornstein-uhlenbeck": OrnsteinUhlenbeckActionNoise}
         kind = hyper.get("noise_type", "normal")
         if kind not in noise:
-            raise ValueError(f"noise_type must be one of {sorted(noise)}, got {kind!r}")
+            raise UserError(f"noise_type must be one of {sorted(noise)}, got {kind!r}")
         kwargs["action_noise"] = noise[kind](np.zeros(n_actions), hyper["noise_std"] * np.ones(n_actions))
     if kwargs.get("replay_buffer_class") == "HerReplayBuffer":  # hindsight relabeling for the goal envs
         from agents.algorithms.sb3.her import KeptInfoHerReplayBuffer  # SB3's, with replay_buffer_kwargs' info_keys
@@ -232,7 +233,7 @@ def train(algo: str, out: str | Path, env_id: str = ENV_ID, control_mode: str = 
     ``callbacks``: SB3 callbacks added to the run's own (a hook, e.g. the hyperparameter
     search's rung reports: agents.experiments.search). See the module docstring."""
     if env_id not in ENV_KWARGS:
-        raise ValueError(f"env_id must be one of {sorted(ENV_KWARGS)}, got {env_id!r}")
+        raise UserError(f"env_id must be one of {sorted(ENV_KWARGS)}, got {env_id!r}")
     hyper = check_hyperparams(dict(hyperparams) if hyperparams is not None  # before the folder is made or locked
                               else load_hyperparams(algo, env_id, control_mode))
     if total_timesteps is not None:
@@ -259,7 +260,7 @@ def _train(algo: str, out: str | Path, env_id: str, control_mode: str, seed: int
     total_timesteps = int(total_timesteps or hyper["n_timesteps"])
     out = Path(out).resolve()
     if SHIPPED_MODELS.resolve() in (out, *out.parents):
-        raise ValueError(f"training writes under runs/ or --out, never into the shipped models ({out})")
+        raise UserError(f"training writes under runs/ or --out, never into the shipped models ({out})")
     continuing = claim_run_folder(out, run_record(algo, env_id, control_mode, seed, hyper), resume, overwrite)
     if continuing and (out / "config.json").exists() and (out / "model.zip").exists():
         return out  # finished before: nothing more to do
@@ -344,12 +345,12 @@ def train_residual_ppo(control_mode: str = "pd", randomize_target: bool = False,
           hyperparams: dict | None = None, eval_freq: int = 25_000, eval_episodes: int = 10,
           progress_bar: bool = True, env_id: str = ENV_ID, variant: str | None = None,
           resume: bool = False, overwrite: bool = False) -> Path:
-    """Train the engineered PPO agent (:func:`train` with ppo_residual.yml's residual set-point);
+    """Train the engineered PPO agent (`train` with ppo_residual.yml's residual set-point);
     writes model.zip, vecnormalize.pkl, config.json, checkpoints/, eval/ and tb/, and
     resumes from its snapshot when run again into the same folder with ``resume``. ``variant`` ("dr",
     "frugal") takes the YAML block "MODE-VARIANT"."""
     if variant is not None and variant not in VARIANTS:
-        raise ValueError(f"variant must be None or one of {VARIANTS}, got {variant!r}")
+        raise UserError(f"variant must be None or one of {VARIANTS}, got {variant!r}")
     hyper = (load_hyperparams("ppo-residual", env_id, control_mode, variant, randomize_target)
              if hyperparams is None else dict(hyperparams))
     hyper.setdefault("eval_freq", eval_freq)

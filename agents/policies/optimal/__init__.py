@@ -1,10 +1,10 @@
 """The optimal reference: the minimum-time voltages the physics allows, by direct collocation.
 
-- the model: :mod:`scara_gym.model.symbolic` (the CasADi twin of the compiled dynamics);
-- :mod:`~agents.policies.optimal.transcription`: the two minimum-time problems (held and free
+- the model: `scara_gym.model.symbolic` (the CasADi twin of the compiled dynamics);
+- `agents.policies.optimal.transcription`: the two minimum-time problems (held and free
   voltages) and their solver;
-- :mod:`~agents.policies.optimal.solutions`: the shipped solutions;
-- :mod:`~agents.policies.optimal.policy`: :class:`OptimalPolicy` and the reference's replay.
+- `agents.policies.optimal.solutions`: the shipped solutions;
+- `agents.policies.optimal.policy`: `OptimalPolicy` and the reference's replay.
 """
 
 from agents.policies.optimal.policy import (

@@ -15,6 +15,7 @@ from scara_gym import DEFAULT_PARAMS, ScaraParams
 from scara_gym.benchmark.episodes import run_episode
 from scara_gym.benchmark.protocol import ENV_ID
 from scara_gym.envs import OBSERVATION_LAYOUT
+from scara_gym.model.checks import UserError, UserKeyError
 
 Q = OBSERVATION_LAYOUT["q"]
 
@@ -32,8 +33,8 @@ class OptimalPolicy:
     def __init__(self, env, solve_missing: bool = True) -> None:
         self.env = env.unwrapped
         if self.env.control_mode != "voltage":
-            raise ValueError("the optimal reference commands voltages: it needs control_mode='voltage', "
-                             f"the environment is in {self.env.control_mode!r} mode")
+            raise UserError("the optimal reference commands voltages: it needs control_mode='voltage', "
+                            f"the environment is in {self.env.control_mode!r} mode")
         self.solve_missing = solve_missing
         self.plans: dict[tuple, np.ndarray] = {}
         self.actions = None
@@ -58,7 +59,7 @@ class OptimalPolicy:
             elif self.solve_missing:
                 self.plans[key] = minimum_time("held", start, target, params).actions
             else:
-                raise LookupError(f"no shipped minimum-time solution from {list(start)} to {list(target)}")
+                raise UserKeyError(f"no shipped minimum-time solution from {list(start)} to {list(target)}")
         return self.plans[key]
 
     def __call__(self, obs: np.ndarray) -> np.ndarray:
@@ -96,8 +97,8 @@ def _reference_replay(env_id: str, start, target, params: ScaraParams, wall_marg
     does not reach the target without a collision."""
     data = cached_solution(start, target, params, wall_margin)
     if data is None:
-        raise LookupError(f"no shipped minimum-time solution from {list(start)} to {list(target)} with wall margin "
-                          f"{wall_margin} m (scara-agents optimal --wall-margin M --write FILE makes one)")
+        raise UserKeyError(f"no shipped minimum-time solution from {list(start)} to {list(target)} with wall margin "
+                           f"{wall_margin} m (scara-agents optimal --wall-margin M --write FILE makes one)")
     env, policy = replaying(np.array(data["held"]["actions"]), env_id, start, target, params)
     obs, _ = env.reset(seed=0)
     policy.reset()

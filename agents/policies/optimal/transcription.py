@@ -9,7 +9,7 @@ degree 3, IPOPT):
 - ``"held"``: the environment's action interface in ``control_mode="voltage"``: the action
   a_k in [-1, 1]^3 is held over each 0.01 s control step and the voltage is a_k * limit,
   with limit = Umax, widened to Umax_wide from the located instant the tip becomes critical
-  until q3 reaches h_obs. Its solution is an action sequence; :class:`OptimalPolicy`
+  until q3 reaches h_obs. Its solution is an action sequence; `OptimalPolicy`
   replays it in the environment, where success, collisions and the time are measured.
 - ``"free"``: voltages free in time (piecewise constant on short elements whose lengths are
   decision variables through the free phase durations): the continuous-time bound of the
