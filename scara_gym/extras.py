@@ -12,6 +12,7 @@ from types import ModuleType
 EXTRAS = {
     "torch": "train", "stable_baselines3": "train", "tensorboard": "train", "yaml": "train", "tqdm": "train",
     "rich": "train",
+    "sbx": "offpolicy", "jax": "offpolicy", "sb3_contrib": "offpolicy",
     "casadi": "control",
     "minari": "datasets", "h5py": "datasets",
     "rliable": "compare", "pandas": "compare",

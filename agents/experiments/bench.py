@@ -12,6 +12,7 @@ import time
 
 from agents.algorithms.sb3 import training
 from agents.algorithms.sb3.hyperparams import load_hyperparams
+from agents.algorithms.sb3.libraries import XLA_ONE_THREAD
 from agents.algorithms.torch_ppo import Config, train
 from scara_gym.benchmark.bench import gpu_available
 from scara_gym.benchmark.protocol import ENV_ID
@@ -75,8 +76,6 @@ OFFPOLICY_PACKAGES = {"sb3_contrib": "sb3-contrib", "sbx": "sbx-rl"}
 """module -> the package bench_offpolicy needs beside stable-baselines3"""
 OFFPOLICY_NET = [128, 128]
 """the hidden layers of every off-policy trainer's actor and critics in bench_offpolicy (but CrossQ's defaults)"""
-XLA_ONE_THREAD = "--xla_cpu_multi_thread_eigen=false intra_op_parallelism_threads=1"
-"""XLA_FLAGS that keep JAX's CPU backend on one thread, set before sbx imports JAX"""
 
 
 def offpolicy_missing() -> list[str]:

@@ -35,8 +35,8 @@ from agents.files import (
 from agents.policies import run_episode
 from scara_gym.model.checks import UserError
 
-CHECKPOINT = re.compile(r"ppo_(?:vecnormalize_)?(\d+)_steps\.(?:zip|pkl)")
-"""the names of the checkpoint files SB3's CheckpointCallback writes for PPO (model, normalizer)"""
+CHECKPOINT = re.compile(r"(?:ppo|sac|td3|tqc|crossq)_(?:vecnormalize_)?(\d+)_steps\.(?:zip|pkl)")
+"""the names of the checkpoint files SB3's CheckpointCallback writes (prefix: the run's algorithm; model, normalizer)"""
 
 
 def checked_checkpoints(run: Path) -> tuple[Checked, Checked, list[int]]:
@@ -74,9 +74,10 @@ def evaluate_checkpoints(run: Path, episodes: int = 5, seed: int = 5000) -> list
 def stage(files: Checked, kept: Checked, steps: int, out: Path) -> None:
     """Checkpoint ``steps`` as a model folder in ``out``, written from the checked bytes."""
     out.mkdir(parents=True, exist_ok=True)
-    write_atomic(out / "model.zip", kept.bytes(f"ppo_{steps}_steps.zip"))
-    if f"ppo_vecnormalize_{steps}_steps.pkl" in kept:
-        write_atomic(out / "vecnormalize.pkl", kept.bytes(f"ppo_vecnormalize_{steps}_steps.pkl"))
+    algo = files.json("config.json").get("algo", "ppo")  # CheckpointCallback's name prefix
+    write_atomic(out / "model.zip", kept.bytes(f"{algo}_{steps}_steps.zip"))
+    if f"{algo}_vecnormalize_{steps}_steps.pkl" in kept:
+        write_atomic(out / "vecnormalize.pkl", kept.bytes(f"{algo}_vecnormalize_{steps}_steps.pkl"))
     write_atomic(out / "config.json", files.bytes("config.json"))
 
 

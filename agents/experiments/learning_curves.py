@@ -20,7 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
-from agents.algorithms.sb3.policy import PPOPolicy
+from agents.algorithms.sb3.policy import SB3Policy
 from agents.experiments.checkpoints import checked_checkpoints, stage
 from agents.experiments.registry import RUNS, spec
 from agents.experiments.report import learning_curve_figure
@@ -30,18 +30,16 @@ from scara_gym.benchmark.episodes import BAND_NAMES, band_keys
 from scara_gym.benchmark.protocol import ENV_ID, evaluate, tuning
 from scara_gym.model.checks import UserError
 
-FIRST_BUDGET = 250_000
-"""the curve's first budget (steps); the others double it, and the run's last checkpoint closes it"""
 PLATEAU = 0.01
 """less than this change per doubling of the budget (issue 58): success in rate, time relative"""
 
 
-def budgets(steps: list[int], first: int = FIRST_BUDGET) -> list[int]:
-    """The checkpoints' steps a curve scores: first, 2 first, 4 first, ... where a checkpoint is
-    there, and the last checkpoint."""
+def budgets(steps: list[int], first: int | None = None) -> list[int]:
+    """The checkpoints' steps a curve scores: first (default: the first checkpoint), 2 first,
+    4 first, ... where a checkpoint is there, and the last checkpoint."""
     if not steps:
         return []
-    kept, budget = [], first
+    kept, budget = [], steps[0] if first is None else first
     while budget <= steps[-1]:
         if budget in steps:
             kept.append(budget)
@@ -79,7 +77,7 @@ def plateau(points: list[dict], budgets_: list[int]) -> dict:
 
 
 def learning_curve(name: str, run_dirs: list[Path], episodes: int = 50, out: Path | None = None,
-                   verbose: bool = True, first_budget: int = FIRST_BUDGET) -> dict:
+                   verbose: bool = True, first_budget: int | None = None) -> dict:
     """Score every seed's checkpoints of the registered run ``name`` (folders ``run_dirs``, one per
     seed) at `budgets` (from ``first_budget``) on ``episodes`` tuning episodes of its ``trained_on`` condition; with
     ``out``, write ``NAME.json`` (summary, plateau, raw arrays) and ``NAME.png`` there."""
@@ -101,7 +99,7 @@ def learning_curve(name: str, run_dirs: list[Path], episodes: int = 50, out: Pat
             for budget in chosen:
                 model_dir = Path(scratch) / str(budget)
                 stage(files, kept, budget, model_dir)
-                result = evaluate(condition, lambda env, d=model_dir: PPOPolicy(env, d, trust=True),  # checked bytes
+                result = evaluate(condition, lambda env, d=model_dir: SB3Policy(env, d, trust=True),  # checked bytes
                                   config["env_kwargs"]["control_mode"], env_id=config["env_id"], record=0)
                 rows.append({"steps": budget, **point(result)})
                 arrays[str(budget)] = {k: np.asarray(v).tolist() for k, v in result.items()

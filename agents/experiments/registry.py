@@ -104,6 +104,30 @@ RUNS = _runs(
             "per episode), 1e7 steps, a checkpoint every 250k: its learning curve", sb3_algorithm="ppo", recipe="ppo",
             variant="random-shifts", tags=frozenset({"standard", "pilot", "domain-randomized", "learning-curve"}),
             trained_on="random-shifts"),
+    RunSpec("sac-c11-starts", "sb3", "SAC (sbx-rl's), sac.yml's recipe on c11-starts' draws (starts from the start "
+            "region), 1e6 steps, a checkpoint every 62.5k: its learning curve", sb3_algorithm="sac", recipe="sac",
+            variant="c11-starts", tags=frozenset({"standard", "pilot", "perturbed-starts", "learning-curve"}),
+            trained_on="c11-starts"),
+    RunSpec("sac-random-targets", "sb3", "SAC (sbx-rl's), sac.yml's recipe on random-targets' draws, 1e6 steps, a "
+            "checkpoint every 62.5k: its learning curve", sb3_algorithm="sac", recipe="sac",
+            variant="random-targets", tags=frozenset({"standard", "pilot", "random-targets", "learning-curve"}),
+            trained_on="random-targets"),
+    RunSpec("sac-random-shifts", "sb3", "SAC (sbx-rl's), sac.yml's recipe on random-shifts' draws (physics and wall "
+            "drawn per episode), 1e6 steps, a checkpoint every 62.5k: its learning curve", sb3_algorithm="sac",
+            recipe="sac", variant="random-shifts",
+            tags=frozenset({"standard", "pilot", "domain-randomized", "learning-curve"}), trained_on="random-shifts"),
+    RunSpec("td3-c11-starts", "sb3", "TD3 (sbx-rl's), td3.yml's recipe on c11-starts' draws (starts from the start "
+            "region), 1e6 steps, a checkpoint every 62.5k: its learning curve", sb3_algorithm="td3", recipe="td3",
+            variant="c11-starts", tags=frozenset({"standard", "pilot", "perturbed-starts", "learning-curve"}),
+            trained_on="c11-starts"),
+    RunSpec("td3-random-targets", "sb3", "TD3 (sbx-rl's), td3.yml's recipe on random-targets' draws, 1e6 steps, a "
+            "checkpoint every 62.5k: its learning curve", sb3_algorithm="td3", recipe="td3",
+            variant="random-targets", tags=frozenset({"standard", "pilot", "random-targets", "learning-curve"}),
+            trained_on="random-targets"),
+    RunSpec("td3-random-shifts", "sb3", "TD3 (sbx-rl's), td3.yml's recipe on random-shifts' draws (physics and wall "
+            "drawn per episode), 1e6 steps, a checkpoint every 62.5k: its learning curve", sb3_algorithm="td3",
+            recipe="td3", variant="random-shifts",
+            tags=frozenset({"standard", "pilot", "domain-randomized", "learning-curve"}), trained_on="random-shifts"),
     RunSpec("ppo-residual", "sb3", "SB3 PPO through the residual set-point, ppo_residual.yml's reward",
             sb3_algorithm="ppo", recipe="ppo-residual", tags=frozenset({"engineered", "residual"})),
     RunSpec("ppo-residual-dr", "sb3", "ppo-residual with physics and wall drawn per episode (block pd-dr)",

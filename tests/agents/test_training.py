@@ -31,9 +31,9 @@ def test_every_hyperparameter_block_builds_its_algorithm(algo, control_mode):
         load_hyperparams("sac", "Scara-C11-v0", control_mode)
 
 
-def _tiny(algo):
+def _tiny(algo, library="sb3"):
     hyper = load_hyperparams(algo)
-    hyper.update(n_envs=2, eval_freq=100, eval_episodes=1, snapshot_freq=100)
+    hyper.update(n_envs=2, eval_freq=100, eval_episodes=1, snapshot_freq=100, library=library)
     if algo == "ppo":
         hyper.update(n_steps=50, batch_size=50, n_epochs=1)
     else:
@@ -41,9 +41,13 @@ def _tiny(algo):
     return hyper
 
 
-@pytest.mark.parametrize("algo", ["ppo", "td3"])
-def test_an_interrupted_run_resumes_from_its_snapshot(algo, tmp_path, monkeypatch):
+@pytest.mark.parametrize("algo, library", [("ppo", "sb3"), ("td3", "sb3"), ("sac", "sbx")])
+def test_an_interrupted_run_resumes_from_its_snapshot(algo, library, tmp_path, monkeypatch):
+    """sbx's JAX SAC goes through the same snapshots, manifests, resume and evaluation as SB3's."""
+    if library != "sb3":
+        pytest.importorskip(library)
     out = tmp_path / algo
+    tiny = _tiny(algo, library)
     make_snapshot = training._snapshot_callback
 
     def interrupting(*args):
@@ -59,21 +63,21 @@ def test_an_interrupted_run_resumes_from_its_snapshot(algo, tmp_path, monkeypatc
 
     monkeypatch.setattr(training, "_snapshot_callback", interrupting)
     with pytest.raises(KeyboardInterrupt):
-        training.train(algo, out, hyperparams=_tiny(algo), total_timesteps=400)
+        training.train(algo, out, hyperparams=tiny, total_timesteps=400)
     assert (out / "snapshot" / "progress.json").exists() and not (out / "config.json").exists()
     stopped_at = json.loads((out / "snapshot" / "progress.json").read_text())["num_timesteps"]
     monkeypatch.setattr(training, "_snapshot_callback", make_snapshot)
 
     with pytest.raises(ValueError, match="holds this run already; resume=True"):
-        training.train(algo, out, hyperparams=_tiny(algo), total_timesteps=400)
+        training.train(algo, out, hyperparams=tiny, total_timesteps=400)
     with pytest.raises(ValueError, match=r"holds another run \(gamma 0\.\d+ \(this run: 0\.5\)\)"):
-        training.train(algo, out, hyperparams={**_tiny(algo), "gamma": 0.5}, total_timesteps=400, resume=True)
+        training.train(algo, out, hyperparams={**tiny, "gamma": 0.5}, total_timesteps=400, resume=True)
     trusted_here = os.environ[files.TRUST_STORE_ENV]
     monkeypatch.setenv(files.TRUST_STORE_ENV, str(tmp_path / "another-machine"))  # a snapshot from elsewhere
     with pytest.raises(files.UntrustedFolder, match="snapshot: its pickle files"):
-        training.train(algo, out, hyperparams=_tiny(algo), total_timesteps=400, resume=True)
+        training.train(algo, out, hyperparams=tiny, total_timesteps=400, resume=True)
     monkeypatch.setenv(files.TRUST_STORE_ENV, trusted_here)
-    training.train(algo, out, hyperparams=_tiny(algo), total_timesteps=400, resume=True)
+    training.train(algo, out, hyperparams=tiny, total_timesteps=400, resume=True)
     config = json.loads((out / "config.json").read_text())
     assert config["resumed"] and config["total_timesteps"] == 400
     assert not (out / "snapshot").exists()
@@ -85,11 +89,12 @@ def test_an_interrupted_run_resumes_from_its_snapshot(algo, tmp_path, monkeypatc
     policy = SB3Policy(env, out)
     assert run_episode(env, policy, seed=0)["steps"] >= 1
     assert files.is_trusted(out)  # recorded as this machine's own
+    assert type(policy.model).__module__.split(".")[0] == {"sb3": "stable_baselines3", "sbx": "sbx"}[library]
     mtime = (out / "model.zip").stat().st_mtime_ns
-    assert training.train(algo, out, hyperparams=_tiny(algo), resume=True) == out.resolve()  # finished: nothing to do
+    assert training.train(algo, out, hyperparams=tiny, resume=True) == out.resolve()  # finished: nothing to do
     assert (out / "model.zip").stat().st_mtime_ns == mtime
     with pytest.raises(ValueError, match="holds this run already"):
-        training.train(algo, out, hyperparams=_tiny(algo))
+        training.train(algo, out, hyperparams=tiny)
 
 
 @pytest.mark.parametrize("variant, expected", [
@@ -134,6 +139,14 @@ def test_sac_with_her_trains_on_the_goal_env_resumes_and_is_evaluated(tmp_path):
     rows, _ = evaluate([f"sb3:{out}"], env_id="Scara-C11-Goal-v0", condition="random-targets", episodes=2)
     assert rows[0]["episodes"] == 2 and 0.0 <= rows[0]["success rate"] <= 1.0
     assert all(o["success"] or o["collisions"] or o["reach_time"] is None for o in rows[0]["outcomes"])
+
+
+def test_a_blocks_library_must_train_its_algorithm(tmp_path):
+    with pytest.raises(ValueError, match=r"library must be one of \['sb3', 'sb3-contrib', 'sbx'\], got 'jax'"):
+        training.train("sac", tmp_path / "x", hyperparams={**_tiny("sac"), "library": "jax"})
+    with pytest.raises(ValueError, match=r"library 'sb3-contrib' trains \['tqc'\] here, not 'sac'"):
+        training.train("sac", tmp_path / "x", hyperparams={**_tiny("sac"), "library": "sb3-contrib"})
+    assert not (tmp_path / "x").exists()  # refused before the folder is made
 
 
 def test_a_run_without_checkpoints_records_no_empty_manifest(tmp_path):

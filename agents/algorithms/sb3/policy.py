@@ -13,21 +13,14 @@ from pathlib import Path
 
 import numpy as np
 
+from agents.algorithms.sb3.libraries import OFF_POLICY, algorithm_class
 from agents.files import require_trusted
-from scara_gym.extras import require
 from scara_gym.model.checks import UserError
 from scara_gym.wrappers import ResidualSetpoint
 
 SHIPPED_MODELS = Path(__file__).resolve().parents[2] / "models"
 MODEL_FILES = ("config.json", "model.zip", "vecnormalize.pkl")
 """the files an SB3 model folder's policy loads: each one that the folder holds must be in its manifest"""
-
-
-def algorithm_class(algo: str):
-    require("stable_baselines3")
-    from stable_baselines3 import PPO, SAC, TD3
-
-    return {"ppo": PPO, "sac": SAC, "td3": TD3}[algo]
 
 
 def residual_mapping(env, hyper: dict) -> ResidualSetpoint | None:
@@ -73,8 +66,9 @@ class SB3Policy:
         algo = config.get("algo", "ppo")
         # acting needs no replay buffer: a 1-entry plain one (a HER buffer would need the env)
         replay = {"replay_buffer_class": None, "replay_buffer_kwargs": {}, "buffer_size": 1} \
-            if algo in ("sac", "td3") else None
-        model = algorithm_class(algo).load(io.BytesIO(checked.bytes("model.zip")), device="cpu",
+            if algo in OFF_POLICY else None
+        library = config["hyperparams"].get("library", "sb3")
+        model = algorithm_class(algo, library).load(io.BytesIO(checked.bytes("model.zip")), device="cpu",
                                            custom_objects=replay)
         normalizer = pickle.loads(checked.bytes("vecnormalize.pkl")) if "vecnormalize.pkl" in checked else None
         self._attach(model, normalizer, config["hyperparams"])

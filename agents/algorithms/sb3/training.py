@@ -41,7 +41,8 @@ import numpy as np
 
 from agents.algorithms.progress import Progress
 from agents.algorithms.sb3.hyperparams import check_hyperparams, load_hyperparams
-from agents.algorithms.sb3.policy import SHIPPED_MODELS, algorithm_class, residual_mapping
+from agents.algorithms.sb3.libraries import algorithm_class, check_library
+from agents.algorithms.sb3.policy import SHIPPED_MODELS, residual_mapping
 from agents.files import (
     DIGESTS,
     POLICY_FILES,
@@ -62,7 +63,7 @@ ALGORITHMS = ("ppo", "sac", "td3")
 # entries of a hyperparameter block that configure the run, not the SB3 algorithm
 RUN_KEYS = {"n_timesteps", "n_envs", "env_threads", "env_kwargs", "normalize", "residual_scale",
             "residual_deadzone", "net_arch", "log_std_init", "noise_std", "snapshot_freq",
-            "eval_freq", "eval_episodes", "torch_threads", "checkpoint_freq", "noise_type"}
+            "eval_freq", "eval_episodes", "torch_threads", "checkpoint_freq", "noise_type", "library"}
 DEFAULT_TORCH_THREADS = 1
 """torch's threads of a run whose block names none: one per run (agents.algorithms.torch_ppo_config's
 reason: more cost most of the speed once another process wants a core)"""
@@ -236,6 +237,7 @@ def train(algo: str, out: str | Path, env_id: str = ENV_ID, control_mode: str = 
         raise UserError(f"env_id must be one of {sorted(ENV_KWARGS)}, got {env_id!r}")
     hyper = check_hyperparams(dict(hyperparams) if hyperparams is not None  # before the folder is made or locked
                               else load_hyperparams(algo, env_id, control_mode))
+    check_library(algo, hyper.get("library", "sb3"))
     if total_timesteps is not None:
         checks.integer("total_timesteps", total_timesteps, 1)
     with exclusive(Path(out)):
@@ -280,7 +282,7 @@ def _train(algo: str, out: str | Path, env_id: str, control_mode: str, seed: int
     normalizer = saved.bytes("vecnormalize.pkl") if saved is not None and "vecnormalize.pkl" in saved else None
     train_env, eval_env = make_envs(env_id, env_kwargs, hyper, seed, normalizer)
 
-    Algorithm = algorithm_class(algo)
+    Algorithm = algorithm_class(algo, hyper.get("library", "sb3"))
     if saved is not None:
         model = Algorithm.load(io.BytesIO(saved.bytes("model.zip")), env=train_env, device="cpu",
                                tensorboard_log=str(out / "tb"))
