@@ -583,8 +583,8 @@ def _add_bench(sub) -> None:
                    help=f"the ids the CPU PPO trains on, in turn in one sitting (default: {ENV_ID})")
     p.add_argument("--offpolicy", action="store_true",
                    help="also off-policy steps/s of SB3 SAC/TD3, sb3-contrib TQC and sbx-rl SAC/TD3/TQC/CrossQ, "
-                        "interleaved, on the first --env-ids, every trainer on one thread (pip install sb3-contrib "
-                        "sbx-rl)")
+                        "interleaved, on the first --env-ids, every trainer on one thread (the offpolicy "
+                        "extra: pip install \"scara_gym[offpolicy]\")")
     p.set_defaults(handler=_bench)
 
 
@@ -593,7 +593,7 @@ def _bench(args, argv) -> str:
 
     missing = agents_bench.offpolicy_missing() if args.offpolicy else []
     if missing:
-        raise UserError(f"--offpolicy needs {' and '.join(missing)}: pip install {' '.join(missing)}")
+        raise UserError(f"--offpolicy needs {' and '.join(missing)}: pip install \"scara_gym[offpolicy]\" (the offpolicy extra)")
     return agents_bench.main(args.quick, args.her, args.gpu, tuple(args.env_ids), args.offpolicy)
 
 

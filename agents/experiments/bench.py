@@ -1,7 +1,7 @@
 """The agents' training benchmarks (``scara-agents bench``): end-to-end PPO steps/s (the single-file
 PPO beside SB3's), the cost of a SAC + HER update with SB3's buffer and ours, and off-policy training
 steps/s of SB3, sb3-contrib and sbx-rl side by side (``--offpolicy``; sb3-contrib and sbx-rl are
-optional packages: ``pip install sb3-contrib sbx-rl``)."""
+optional packages of the offpolicy extra: ``pip install "scara_gym[offpolicy]"``)."""
 
 from __future__ import annotations
 

@@ -268,9 +268,10 @@ def test_bench_offpolicy_without_its_packages_names_what_to_install(monkeypatch,
     monkeypatch.setattr(importlib.util, "find_spec", lambda name, *a: None if name == "sbx" else found(name, *a))
     if found("sb3_contrib") is None:
         _refused_in_one_line(["bench", "--offpolicy"], r"--offpolicy needs sb3-contrib and sbx-rl: pip install "
-                                                       r"sb3-contrib sbx-rl$", capsys)
+                                                       r"\"scara_gym\[offpolicy\]\" \(the offpolicy extra\)$", capsys)
     else:
-        _refused_in_one_line(["bench", "--offpolicy"], r"--offpolicy needs sbx-rl: pip install sbx-rl$", capsys)
+        _refused_in_one_line(["bench", "--offpolicy"], r"--offpolicy needs sbx-rl: pip install "
+                                                       r"\"scara_gym\[offpolicy\]\" \(the offpolicy extra\)$", capsys)
 
 
 @pytest.mark.parametrize("bug", [KeyError("rows"), TypeError("unsupported operand"), ValueError("math domain error")])
