@@ -102,7 +102,7 @@ def learning_curve(name: str, run_dirs: list[Path], episodes: int = 50, out: Pat
                 result = evaluate(condition, lambda env, d=model_dir: SB3Policy(env, d, trust=True),  # checked bytes
                                   config["env_kwargs"]["control_mode"], env_id=config["env_id"], record=0)
                 rows.append({"steps": budget, **point(result)})
-                arrays[str(budget)] = {k: np.asarray(v).tolist() for k, v in result.items()
+                arrays[str(budget)] = {k: _raw(v) for k, v in result.items()
                                        if k.startswith(("success", "reach_time", "collisions"))}
                 if verbose:
                     print(f"{run_dir}: {budget:,} steps {rows[-1]}", flush=True)
@@ -123,9 +123,18 @@ def learning_curve(name: str, run_dirs: list[Path], episodes: int = 50, out: Pat
     if out is not None:
         out = Path(out)
         out.mkdir(parents=True, exist_ok=True)
-        write_json(out / f"{name}.json", data)
+        write_json(out / f"{name}.json", data, indent=None)  # compact: the raw episodes are most of it
         learning_curve_figure(data, out / f"{name}.png")
     return data
+
+
+def _raw(values) -> list:
+    """One episode array as strict JSON: flags and counts as integers, times in s to the microsecond,
+    null where an episode did not reach its band (NaN is not JSON)."""
+    array = np.asarray(values)
+    if array.dtype.kind in "biu":
+        return array.astype(int).tolist()
+    return [None if not np.isfinite(x) else round(float(x), 6) for x in array]
 
 
 def _curve_runs() -> dict:
