@@ -464,3 +464,20 @@ def test_only_and_merge_put_one_kind_of_row_into_a_published_comparison(tmp_path
     monkeypatch.setattr(curves_module, "CURVES", {"load mass": ("arm.load_mass", (1.0, 3.0))})
     with pytest.raises(comparison.UserError, match="not today's"):
         curves_module.merge_curves(json.loads(path.read_text()), ["robust-shield"], verbose=False)
+
+
+def test_merged_rows_go_beside_their_twin_or_their_kind_and_the_rest_is_kept():
+    def row(condition, name, kind, value=0.0):
+        return {"condition": condition, "name": name, "kind": kind, "time_iqm": value}
+
+    published = [row("a", "pd", "pd"), row("a", "mpc", "mpc"), row("a", "ppo", "learned"), row("a", "sac", "learned"),
+                 row("b", "pd", "pd"), row("b", "mpc", "mpc"), row("b", "mpc (pd)", "mpc"), row("b", "ppo", "learned")]
+    fresh = [row("a", "ppo + shield", "learned", 1.0), row("b", "ppo + shield", "learned", 2.0)]
+    merged = comparison.merge_entries(published, fresh, ["learned-shielded"])
+    assert [(e["condition"], e["name"]) for e in merged] == [
+        ("a", "pd"), ("a", "mpc"), ("a", "ppo"), ("a", "ppo + shield"), ("a", "sac"),
+        ("b", "pd"), ("b", "mpc"), ("b", "mpc (pd)"), ("b", "ppo"), ("b", "ppo + shield")]
+    fresh = [row("b", "mpc", "mpc", 3.0)]  # b's "mpc (pd)" is not in the fresh rows: gone; a's kept
+    merged = comparison.merge_entries(merged, fresh, ["mpc"])
+    assert [e["time_iqm"] for e in merged if e["kind"] == "mpc"] == [0.0, 3.0]
+    assert [e["name"] for e in merged if e["condition"] == "b"] == ["pd", "mpc", "ppo", "ppo + shield"]
