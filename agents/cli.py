@@ -1,18 +1,21 @@
 """``scara-agents``: the agents' one console script.
 
-    scara-agents evaluate --policies pd dec-continue:0.06 ppo:ppo_pd --episodes 100 --out results/pd
+    scara-agents evaluate --policies pd dec-continue:0.06 ppo:ppo_pd --episodes 100 --out runs/evaluate/pd
     scara-agents train ppo-residual --seed 0 --out runs/ppo_residual
     scara-agents torch-ppo --total-timesteps 2000000 --out runs/torch_ppo
     scara-agents campaign ppo sac td3 --seeds 0 1 2 3 4
-    scara-agents compare --runs docs/results/runs --episodes 30 --out docs/results
-    scara-agents curves --runs docs/results/runs --out docs/results
+    scara-agents compare --runs results/runs --episodes 30 --out runs/comparison
+    scara-agents compare --runs results/runs --only mpc --merge docs/results/comparison.json --out docs/results
+    scara-agents curves --runs results/runs --out runs/curves
     scara-agents sweep --run sac --grid learning_rate=0.0003,0.001
     scara-agents select RUN --out models/NAME
     scara-agents optimal --condition c11
     scara-agents bench
     scara-agents datasets build scara/c11/expert-v0 --episodes 1000
 
-Each subcommand's ``--help`` says what it does. A user's mistake ends in one line
+Each subcommand's ``--help`` says what it does. Outputs go under ``runs/`` in the working folder
+unless ``--out`` says otherwise; the published runs (the repository's ``results/runs``) are found
+where ``--runs`` or ``SCARA_GYM_PUBLISHED_RUNS`` says (agents.files.published_runs). A user's mistake ends in one line
 ``error: ...`` and exit status 2 (``--debug`` shows the traceback). SB3 model folders are
 pickle: those neither shipped with the package nor written by a run on this machine load only
 with ``--trust`` (agents.files.require_trusted).
@@ -34,8 +37,8 @@ from agents.algorithms.sb3.hyperparams import load_hyperparams, numba_threads
 from agents.algorithms.torch_ppo_config import SEED_MAX, Config, parse_floats, parse_reward_weights
 from agents.experiments import datasets, sweep as sweeps
 from agents.experiments.checkpoints import select_checkpoint
-from agents.experiments.comparison import SHIELDED, compare_in_parallel
-from agents.experiments.curves import robustness_curves, write_curves
+from agents.experiments.comparison import ONLY_ROWS, SHIELDED, compare_in_parallel, merge_entries
+from agents.experiments.curves import ONLY_CURVES, merge_curves, robustness_curves, write_curves
 from agents.experiments.evaluation import COLUMNS, evaluate, learned_runs
 from agents.experiments.learning_curves import learning_curve, run_folders
 from agents.experiments.registry import RUNS, spec
@@ -43,7 +46,7 @@ from agents.experiments.report import comparison_figures, comparison_markdown, e
 from agents.experiments.runs import campaign, hyperparams_of, train_run
 from agents.experiments.search import SPACES, run_search
 from agents.experiments.targets import target_checks
-from agents.files import TRUST_ENV, RunLocked, write_json
+from agents.files import TRUST_ENV, RunLocked, write_atomic, write_json
 from agents.policies.optimal import CollocationConfig
 from agents.policies.optimal.policy import solve_reference
 from scara_gym import DEFAULT_PARAMS
@@ -115,7 +118,7 @@ def _add_evaluate(sub) -> None:
     p.add_argument("--episodes", type=int, default=None, help="default: the condition's own count")
     p.add_argument("--seed", type=int, default=None,
                    help="episode i uses seed + i (default: the condition's evaluation seeds)")
-    p.add_argument("--out", type=_folder, default=Path("results"))
+    p.add_argument("--out", type=_folder, default=Path("runs/evaluate"))
     _add_trust(p)
     p.set_defaults(handler=_evaluate)
 
@@ -311,7 +314,8 @@ def _add_campaign(sub) -> None:
     p.add_argument("--shard", default="0/1", help="K/N: every N-th run, starting at the K-th (0-based)")
     p.add_argument("--publish", type=_folder, default=None, metavar="DEST",
                    help="copy the finished runs of the list, model and history only, to DEST (e.g. "
-                        "docs/results/runs), instead of training")
+                        "results/runs) and list their manifests in DEST/published_manifests.txt, instead of "
+                        "training")
     _add_trust(p)
     p.set_defaults(handler=_campaign)
 
@@ -334,11 +338,19 @@ def _add_compare(sub) -> None:
                                    "comparison.md and the figures under --out.")
     p.add_argument("--runs", type=_folder, default=Path("runs/baselines"),
                    help="the folder of learned runs (ENV_ID/MODE/NAME/seedN)")
-    p.add_argument("--conditions", nargs="+", choices=list(CONDITIONS), default=list(CONDITIONS))
+    p.add_argument("--conditions", nargs="+", choices=list(CONDITIONS), default=None,
+                   help="default: every condition (with --merge: the merged comparison's)")
     p.add_argument("--episodes", type=int, default=None,
-                   help="episodes per condition (default: each condition's own; the C11 episode is one)")
+                   help="episodes per condition (default: each condition's own, with --merge the merged comparison's; "
+                        "the C11 episode is one)")
     p.add_argument("--no-optimal", action="store_true", help="leave out the optimal reference")
-    p.add_argument("--out", type=_folder, default=Path("docs/results"))
+    p.add_argument("--out", type=_folder, default=Path("runs/comparison"))
+    p.add_argument("--only", nargs="+", choices=sorted(ONLY_ROWS), default=None, metavar="KIND",
+                   help=f"evaluate only these kinds of row ({', '.join(sorted(ONLY_ROWS))}): after a change to "
+                        "that policy alone; no figures")
+    p.add_argument("--merge", type=_file, default=None, metavar="FILE",
+                   help="with --only: a comparison.json whose other entries are kept; its rows of those kinds are "
+                        "replaced (new ones put beside their kind), and the command recorded in its 'refreshed_by'")
     p.add_argument("--jobs", type=int, default=1, help="processes evaluating conditions side by side")
     p.add_argument("--shield", nargs="*", default=list(SHIELDED), metavar="NAME",
                    help="learned runs to evaluate behind the shield as well (none: --shield)")
@@ -360,27 +372,60 @@ def _compare(args, argv) -> list[dict]:
     if unknown:
         raise UserError(f"--shield names {unknown}, which are not registered runs; they are {sorted(RUNS)}")
     if not args.runs.is_dir():
-        raise UserError(f"--runs: no folder {str(args.runs)!r} (the learned runs, ENV_ID/MODE/NAME/seedN)")
+        raise UserError(f"--runs: no folder {str(args.runs)!r} (the learned runs, ENV_ID/MODE/NAME/seedN; the "
+                        "published ones are the repository's results/runs)")
     # the statistics run after hours of episodes, the MPC and the optimal replay need CasADi: a
     # missing extra is said before any episode
     require("rliable")
     if not (args.no_mpc and args.no_optimal):
         require("casadi")
-    entries, traces = compare_in_parallel(args.runs, args.conditions, args.jobs, episodes=args.episodes,
+    merged = _merged("--merge", args.merge, args.only, "comparison.json", ("policies", "conditions"))
+    conditions = args.conditions or (list(merged["conditions"]) if merged else list(CONDITIONS))
+    episodes = args.episodes
+    if merged and episodes is None:  # the merged comparison's count per condition (its PD row's)
+        episodes = {e["condition"]: e["episodes"] for e in merged["policies"] if e["name"] == "pd"}
+    entries, traces = compare_in_parallel(args.runs, conditions, args.jobs, episodes=episodes,
                                           include_optimal=not args.no_optimal, cache=args.cache,
                                           shielded=tuple(args.shield), pilots=args.pilots,
-                                          robust_shield=not args.no_robust_shield, include_mpc=not args.no_mpc)
+                                          robust_shield=not args.no_robust_shield, include_mpc=not args.no_mpc,
+                                          only=tuple(args.only or ()))
+    command = "scara-agents " + " ".join(argv)
+    if merged:
+        entries = merge_entries(merged["policies"], entries, args.only)
+        names = list(merged["conditions"]) + [c for c in conditions if c not in merged["conditions"]]
+        data = {**merged, "conditions": protocol_record(names), "targets": target_checks(entries), "policies": entries}
+        data.setdefault("refreshed_by", {}).update({kind: command for kind in args.only})
+    else:
+        data = {"env_id": ENV_ID, "command": command, "conditions": protocol_record(conditions),
+                "targets": target_checks(entries), "policies": entries}
     args.out.mkdir(parents=True, exist_ok=True)
-    (args.out / "comparison.json").write_text(json.dumps({"env_id": ENV_ID,
-                                                           "command": "scara-agents " + " ".join(argv),
-                                                           "conditions": protocol_record(args.conditions),
-                                                           "targets": target_checks(entries),
-                                                           "policies": entries}, indent=1))
+    write_json(args.out / "comparison.json", data, indent=1)
     report = comparison_markdown(entries)
-    (args.out / "comparison.md").write_text(report)
-    comparison_figures(entries, traces, learned_runs(args.runs), args.out)
+    write_atomic(args.out / "comparison.md", report)
+    if args.only:
+        print(f"--only: the figures are not drawn (they need every entry's first episode); written to {args.out}")
+    else:
+        comparison_figures(entries, traces, learned_runs(args.runs), args.out)
     print(report)
     return entries
+
+
+def _merged(flag: str, path: Path | None, only, name: str, keys: tuple[str, ...]) -> dict | None:
+    """The published record ``path`` that ``flag`` names (None without it); UserError where it is
+    given without --only or is not a record of that kind."""
+    if path is None:
+        return None
+    if not only:
+        raise UserError(f"{flag} needs --only KIND: the rows to evaluate and put in {path}")
+    try:
+        data = json.loads(path.read_text())
+    except FileNotFoundError:
+        raise UserError(f"{flag}: no file {str(path)!r}") from None
+    except (ValueError, UnicodeDecodeError) as error:
+        raise UserError(f"{flag}: {path} is not JSON ({error})") from None
+    if not isinstance(data, dict) or any(key not in data for key in keys):
+        raise UserError(f"{flag}: {path} is not a {name} (it needs {', '.join(keys)})")
+    return data
 
 
 def _add_learning_curve(sub) -> None:
@@ -394,7 +439,7 @@ def _add_learning_curve(sub) -> None:
                    help="the folder of its runs (ENV_ID/MODE/NAME/seedN)")
     p.add_argument("--env-id", choices=ENV_IDS, default=ENV_ID, help="the id its runs trained on")
     p.add_argument("--episodes", type=int, default=50, help="tuning episodes per budget and seed")
-    p.add_argument("--out", type=_folder, default=Path("docs/results/learning_curves"))
+    p.add_argument("--out", type=_folder, default=Path("runs/learning_curves"))
     p.set_defaults(handler=_learning_curve)
 
 
@@ -421,7 +466,12 @@ def _add_curves(sub) -> None:
     p.add_argument("--episodes", type=int, default=20, help="episodes per point (and per seed)")
     p.add_argument("--robust-shield", action="store_true", help="also PD behind the robust shield (slow)")
     p.add_argument("--cache", type=_folder, default=None, metavar="DIR", help="as compare --cache")
-    p.add_argument("--out", type=_folder, default=Path("docs/results"))
+    p.add_argument("--out", type=_folder, default=Path("runs/curves"))
+    p.add_argument("--only", nargs="+", choices=sorted(ONLY_CURVES), default=None, metavar="KIND",
+                   help=f"evaluate only these policies ({', '.join(sorted(ONLY_CURVES))}), to --merge them")
+    p.add_argument("--merge", type=_file, default=None, metavar="FILE",
+                   help="with --only: a curves.json whose other policies are kept, its episodes per point used; the "
+                        "command is recorded in its 'refreshed_by' and the figure redrawn")
     _add_trust(p)
     p.set_defaults(handler=_curves)
 
@@ -429,11 +479,19 @@ def _add_curves(sub) -> None:
 def _curves(args, argv) -> dict:
     _positive("--episodes", args.episodes)
     if args.runs is not None and not args.runs.is_dir():
-        raise UserError(f"--runs: no folder {str(args.runs)!r} (the learned runs, ENV_ID/MODE/NAME/seedN)")
+        raise UserError(f"--runs: no folder {str(args.runs)!r} (the learned runs, ENV_ID/MODE/NAME/seedN; the "
+                        "published ones are the repository's results/runs)")
+    if args.only and not args.merge:
+        raise UserError("--only needs --merge FILE: the curves.json the policies are put in")
+    merged = _merged("--merge", args.merge, args.only, "curves.json", ("episodes", "curves"))
     require("rliable")  # the curves' intervals, computed after the episodes: said before them
-    data = robustness_curves(args.runs, args.episodes, cache=args.cache, robust_shield=args.robust_shield)
-    data["command"] = "scara-agents " + " ".join(argv)
-    write_curves(data, args.out)
+    if merged:
+        data = merge_curves(merged, args.only)
+        data.setdefault("refreshed_by", {}).update({kind: "scara-agents " + " ".join(argv) for kind in args.only})
+    else:
+        data = robustness_curves(args.runs, args.episodes, cache=args.cache, robust_shield=args.robust_shield)
+        data["command"] = "scara-agents " + " ".join(argv)
+    print(f"written: {', '.join(str(p) for p in write_curves(data, args.out))}")
     return data
 
 
@@ -492,7 +550,7 @@ def _add_sweep(sub) -> None:
                    help="trials at once (default: as many as the CPUs allow); 1 leaves the other cores free")
     p.add_argument("--max-failures", type=int, default=2, help="retries of a failed trial")
     p.add_argument("--publish", type=_folder, default=None, metavar="DEST",
-                   help="copy the finished trials' runs to DEST/ENV_ID/MODE/NAME/seedN (e.g. docs/results/runs)")
+                   help="copy the finished trials' runs to DEST/ENV_ID/MODE/NAME/seedN (e.g. results/runs)")
     p.set_defaults(handler=_sweep)
 
 
@@ -607,8 +665,9 @@ def _add_datasets(sub) -> None:
     p.add_argument("--episodes", type=int, help="episodes per dataset (default: its own count; medium-replay: "
                                                 "all the medium run's training episodes)")
     p.add_argument("--out", type=_folder, help="the datasets' folder (default: Minari's)")
-    p.add_argument("--runs", type=_folder, default=Path("docs/results/runs"),
-                   help="the published runs the experts are picked from (default: docs/results/runs)")
+    p.add_argument("--runs", type=_folder, default=None,
+                   help="the published runs the experts are picked from (default: $SCARA_GYM_PUBLISHED_RUNS, else the "
+                        "clone's results/runs; the random and medium tiers record the published expert without them)")
     p.add_argument("--summary", type=_file, help="with 'all': write the datasets' sizes and build times here (JSON)")
     p.set_defaults(handler=_datasets)
 

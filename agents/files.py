@@ -17,8 +17,9 @@ the one loaded (`verify_digests`, `Checked`).
 SB3's ``model.zip`` and replay buffers and its ``vecnormalize.pkl`` are pickle by design: loading
 one runs whatever code it holds. They load only from a trusted folder (`require_trusted`):
 one whose manifest this machine's own runs wrote (recorded in the trust store, `trust_store`,
-which is refused when it is a symlink, another user's or writable by others), one shipped or
-published with the package (`PUBLISHED_MANIFESTS`), or any folder when the user says so
+which is refused when it is a symlink, another user's or writable by others), one shipped with
+the package (`SHIPPED_MANIFESTS`) or published beside the published runs (`published_runs`: the
+clone's ``results/runs``, or ``$SCARA_GYM_PUBLISHED_RUNS``), or any folder when the user says so
 (``--trust``, or ``SCARA_GYM_TRUST=1`` for a program and the workers it starts).
 
 A run folder is claimed by its trainer under its lock (`claim_run_folder`): a folder that
@@ -332,12 +333,47 @@ TRUST_ENV = "SCARA_GYM_TRUST"
 """set to "1" (as ``--trust`` does for a command and the workers it starts): trust every folder"""
 TRUST_STORE_ENV = "SCARA_GYM_TRUST_STORE"
 """a file to keep the trust store in instead of the user's data folder"""
-PUBLISHED_MANIFESTS = Path(__file__).resolve().parent / "published_manifests.txt"
-"""the SHA-256 of the manifest of every model folder shipped or published with the package (the
-shipped agents and ``docs/results/runs``), one per line: those folders are trusted on every machine"""
+SHIPPED_MANIFESTS = Path(__file__).resolve().parent / "shipped_manifests.txt"
+"""the SHA-256 of the manifest of every model folder shipped with the package (``agents/models``),
+one per line: those folders are trusted on every machine (package data, read only)"""
+PUBLISHED_LIST = "published_manifests.txt"
+"""the name of the list of published manifests in a folder of published runs (``results/runs``):
+the SHA-256 of every run's manifest, written by ``campaign --publish`` beside the runs it copies
+and committed with them"""
+PUBLISHED_RUNS_ENV = "SCARA_GYM_PUBLISHED_RUNS"
+"""the folder of the published runs (``ENV_ID/MODE/NAME/seedN`` and their PUBLISHED_LIST), for a
+package installed outside the clone: ``export SCARA_GYM_PUBLISHED_RUNS=CLONE/results/runs``"""
+CHECKOUT_RUNS = Path(__file__).resolve().parents[1] / "results" / "runs"
+"""the published runs of the clone the package runs from (none for an installed package)"""
 PUBLISHED_MANIFESTS_ENV = "SCARA_GYM_PUBLISHED_MANIFESTS"
-"""a list to read and extend instead of PUBLISHED_MANIFESTS (the tests' own, so that their publishes
-leave the package's list as it is)"""
+"""a list to read and extend instead of the published runs' (the tests' own, so that their
+publishes leave the committed list as it is)"""
+
+
+def published_runs() -> Path | None:
+    """The folder of the published runs: ``$SCARA_GYM_PUBLISHED_RUNS``, else the clone's
+    ``results/runs`` where the package runs from a clone that has it, else None (an installed
+    package: the runs are not part of it)."""
+    if os.environ.get(PUBLISHED_RUNS_ENV):
+        return Path(os.environ[PUBLISHED_RUNS_ENV])
+    return CHECKOUT_RUNS if (CHECKOUT_RUNS / PUBLISHED_LIST).is_file() else None
+
+
+PUBLISHED_RUNS_MISSING = (
+    "the published runs (the repository's results/runs) are not part of the installed package: in a "
+    f"clone of the repository pass --runs CLONE/results/runs, or set {PUBLISHED_RUNS_ENV}=CLONE/results/runs")
+"""what a command that needs the published runs says where it finds none"""
+
+
+def require_published_runs(runs: str | Path | None = None) -> Path:
+    """``runs`` (a folder the user named) or the published runs (`published_runs`), which must
+    exist: UserError saying how to get them otherwise."""
+    folder = Path(runs) if runs is not None else published_runs()
+    if folder is None:
+        raise UserError(f"no published runs found; {PUBLISHED_RUNS_MISSING}")
+    if not folder.is_dir():
+        raise UserError(f"no folder {str(folder)!r} of published runs; {PUBLISHED_RUNS_MISSING}")
+    return folder
 
 
 class UntrustedFolder(UserError):
@@ -359,13 +395,17 @@ def manifest_digest(folder: str | Path) -> str | None:
     return file_digest(manifest) if manifest.is_file() else None
 
 
-def published_manifests() -> Path:
-    """The list of published manifests in use: ``$SCARA_GYM_PUBLISHED_MANIFESTS``, else PUBLISHED_MANIFESTS."""
-    return Path(os.environ.get(PUBLISHED_MANIFESTS_ENV) or PUBLISHED_MANIFESTS)
+def published_manifests() -> Path | None:
+    """The list of published manifests in use: ``$SCARA_GYM_PUBLISHED_MANIFESTS``, else the
+    published runs' PUBLISHED_LIST (`published_runs`; None without them)."""
+    if os.environ.get(PUBLISHED_MANIFESTS_ENV):
+        return Path(os.environ[PUBLISHED_MANIFESTS_ENV])
+    runs = published_runs()
+    return None if runs is None else runs / PUBLISHED_LIST
 
 
-def _digests_in(path: Path) -> set[str]:
-    if not path.is_file():
+def _digests_in(path: Path | None) -> set[str]:
+    if path is None or not path.is_file():
         return set()
     return {line.strip() for line in path.read_text().splitlines() if len(line.strip()) == 64}
 
@@ -443,26 +483,30 @@ def record_trusted(folder: str | Path) -> None:
         os.close(descriptor)
 
 
-def publish_manifest(folder: str | Path) -> None:
-    """Add ``folder``'s manifest to the published ones (`published_manifests`; commit it with
-    the published run: it is then trusted wherever the package is), keeping the list sorted;
-    written atomically. A manifest that lists nothing is refused."""
+def publish_manifest(folder: str | Path, listing: str | Path) -> None:
+    """Add ``folder``'s manifest to the list of published manifests ``listing`` (the
+    PUBLISHED_LIST of the published runs' folder; ``$SCARA_GYM_PUBLISHED_MANIFESTS`` instead where
+    set), keeping it sorted, written atomically: commit it with the published run, which is then
+    trusted wherever that folder is the published runs' (`published_runs`). Never a file of the
+    installed package. A manifest that lists nothing is refused."""
     manifest = read_manifest(folder)
     if manifest is None:
         raise UserError(f"{folder}: no {DIGESTS} to publish")
-    listed = published_manifests()
+    listed = Path(os.environ.get(PUBLISHED_MANIFESTS_ENV) or listing)
     known = _digests_in(listed)
     if manifest[0] not in known:
         write_atomic(listed, "".join(f"{d}\n" for d in sorted(known | {manifest[0]})))
 
 
 def _vouched(digest: str) -> bool:
-    """Whether the package publishes the manifest of this SHA-256 or this machine's runs wrote it."""
-    return digest in _digests_in(published_manifests()) or _trusted_here(digest)
+    """Whether the package ships the folder of the manifest of this SHA-256, the published runs
+    list it, or this machine's runs wrote it."""
+    return (digest in _digests_in(SHIPPED_MANIFESTS) or digest in _digests_in(published_manifests())
+            or _trusted_here(digest))
 
 
 def is_trusted(folder: str | Path) -> bool:
-    """True when ``folder`` has a manifest that lists files and that the package publishes or this
+    """True when ``folder`` has a manifest that lists files and that the package ships or publishes or this
     machine's runs wrote (its files are checked when they are read: `require_trusted`)."""
     try:
         manifest = read_manifest(folder)

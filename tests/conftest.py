@@ -15,10 +15,12 @@ import scara_gym  # noqa: F401  (registers the environments)
 from agents import files
 
 # the runs the tests train record their manifests in a trust store of their own, not the user's, and
-# the runs they publish extend a copy of the package's list of published manifests, not the list
+# the runs they publish extend a copy of the published runs' list of manifests (results/runs), not the list
 _TRUST = tempfile.mkdtemp(prefix="scara-trust-")
 os.environ["SCARA_GYM_TRUST_STORE"] = os.path.join(_TRUST, "trusted_manifests")
-os.environ["SCARA_GYM_PUBLISHED_MANIFESTS"] = shutil.copy(files.PUBLISHED_MANIFESTS, os.path.join(_TRUST, "published"))
+os.environ["SCARA_GYM_PUBLISHED_MANIFESTS"] = shutil.copy(files.CHECKOUT_RUNS / files.PUBLISHED_LIST,
+                                                          os.path.join(_TRUST, "published"))
+os.environ.pop("SCARA_GYM_PUBLISHED_RUNS", None)
 os.environ.pop("SCARA_GYM_TRUST", None)
 
 

@@ -3,6 +3,7 @@ that works outside the clone."""
 
 import ast
 import hashlib
+import importlib.util
 import os
 import subprocess
 import sys
@@ -110,9 +111,10 @@ def test_version_command(capsys):
 
 
 def _tree_digest(folder: Path) -> str:
+    """The names and bytes of every file under ``folder`` but compiled caches (``__pycache__``)."""
     sha = hashlib.sha256()
     for path in sorted(folder.rglob("*")):
-        if path.is_file():
+        if path.is_file() and "__pycache__" not in path.parts:
             sha.update(str(path.relative_to(folder)).encode() + path.read_bytes())
     return sha.hexdigest()
 
@@ -120,19 +122,24 @@ def _tree_digest(folder: Path) -> str:
 @pytest.mark.slow
 def test_a_non_editable_install_works_outside_the_clone(tmp_path):
     """pip install (not -e) into a folder, then from a folder outside the clone: evaluation of a
-    shipped model by name and a tiny training run. Training writes under runs/, evaluation
-    under its --out only, and the shipped models stay as they were."""
+    shipped model by name, a tiny training run and the random tier of a dataset, which needs no
+    published runs (the expert tier says in one line how to get them). Training writes under
+    runs/, evaluation and the dataset under their --out only, the home folder gets caches at
+    most, and the installed package (the shipped models included) stays as it was."""
     pytest.importorskip("stable_baselines3")
     site = tmp_path / "site"
     subprocess.run([sys.executable, "-m", "pip", "install", "-q", "--no-deps", "--target", str(site), str(ROOT)],
                    check=True, capture_output=True, text=True)
     shipped = site / "agents" / "models"
     assert (shipped / "ppo_pd" / "model.zip").exists() and (site / "agents" / "algorithms" / "sb3" / "hyperparams" / "ppo.yml").exists()
-    before = _tree_digest(shipped)
-    work = tmp_path / "elsewhere"
+    before, installed = _tree_digest(shipped), _tree_digest(site)
+    work, home = tmp_path / "elsewhere", tmp_path / "home"
     work.mkdir()
-    env = {**os.environ, "PYTHONPATH": str(site)}
-    env.pop("NUMBA_CACHE_DIR", None)
+    home.mkdir()
+    env = {**os.environ, "PYTHONPATH": str(site), "HOME": str(home)}
+    for name in ("NUMBA_CACHE_DIR", "SCARA_GYM_PUBLISHED_RUNS", "MINARI_DATASETS_PATH", "XDG_DATA_HOME",
+                 "XDG_CACHE_HOME", "XDG_CONFIG_HOME"):
+        env.pop(name, None)
 
     def run(*args):
         return subprocess.run([sys.executable, *args], cwd=work, env=env, capture_output=True, text=True)
@@ -152,5 +159,14 @@ def test_a_non_editable_install_works_outside_the_clone(tmp_path):
     again = run("-m", "agents", "evaluate", "--policies", "ppo:runs/ppo_pd", "--episodes", "1", "--out", "out")
     assert again.returncode == 0, again.stderr
     assert compilation.COMPILE_MESSAGE not in again.stderr  # cached on disk by the first run
-    assert sorted(p.name for p in work.iterdir()) == ["out", "runs"]
-    assert _tree_digest(shipped) == before
+    if importlib.util.find_spec("minari") is not None:
+        built = run("-m", "agents", "datasets", "build", "scara/c11/random-v0", "--episodes", "5", "--out", "data")
+        assert built.returncode == 0, built.stderr
+        assert (work / "data" / "scara" / "c11" / "random-v0" / "data").is_dir()
+        refused = run("-m", "agents", "datasets", "build", "scara/c11/expert-v0", "--episodes", "5", "--out", "data")
+        assert refused.returncode == 2 and len(refused.stderr.strip().splitlines()) == 1, refused.stderr
+        assert "SCARA_GYM_PUBLISHED_RUNS=CLONE/results/runs" in refused.stderr
+        assert not (work / "data" / "scara" / "c11" / "expert-v0").exists()
+    assert {p.name for p in work.iterdir()} <= {"data", "out", "runs"}
+    assert {p.relative_to(home).parts[0] for p in home.rglob("*") if p.is_file()} <= {".cache", ".config"}
+    assert _tree_digest(shipped) == before and _tree_digest(site) == installed

@@ -62,6 +62,7 @@ from agents.policies import (
 )
 from agents.policies.optimal import SOLUTIONS, OptimalPolicy, policy as optimal_policy, solutions as optimal_solutions
 from scara_gym.benchmark.protocol import evaluate, get_condition
+from scara_gym.model.checks import UserError
 from scara_gym.wrappers import Shield, shield as shield_module
 
 SHIELDED = tagged("also-shielded")
@@ -103,9 +104,12 @@ def tuned_heuristics(verbose: bool = False) -> dict:
 def compare(runs_root: Path | None = Path("runs/baselines"), conditions: list[str] = ("c11",),
             episodes: int | None = None, include_optimal: bool = True, verbose: bool = True,
             cache: Path | None = None, shielded: tuple[str, ...] = SHIELDED, heuristics: dict | None = None,
-            pilots: bool = False, robust_shield: bool = True, include_mpc: bool = True):
+            pilots: bool = False, robust_shield: bool = True, include_mpc: bool = True, only: tuple[str, ...] = ()):
     """Every policy in every condition: (entries, traces per condition). episodes: per condition
-    (None: the condition's own count; the C11 episode is one). cache: a folder that keeps every
+    (None: the condition's own count; a dict: condition -> count, None or missing for its own;
+    the C11 episode is one). only: kinds of ONLY_ROWS, evaluated alone (every other row left
+    out; no normalized time score: its references are left out too), to merge into a published
+    comparison (merge_entries). cache: a folder that keeps every
     evaluation (learned runs': learned_episodes; the classical policies' and the MPC's:
     cached_evaluation). shielded: learned algorithms that also run behind
     scara_gym.wrappers.Shield (entries "ALGO + shield"), as PD does ("pd + shield") where any is
@@ -123,12 +127,16 @@ def compare(runs_root: Path | None = Path("runs/baselines"), conditions: list[st
         groups = {key: dirs for key, dirs in groups.items() if "pilot" not in getattr(RUNS.get(key[0]), "tags", ())}
     for name in conditions:
         started = time.perf_counter()
-        table = _ConditionTable(get_condition(name), episodes, verbose, cache)
-        table.classical(heuristics, shielded, include_optimal, robust_shield)
-        if include_mpc:
-            table.mpc()
-        table.learned(groups, cache, shielded)
-        table.time_scores()
+        count = episodes.get(name) if isinstance(episodes, dict) else episodes
+        table = _ConditionTable(get_condition(name), count, verbose, cache)
+        if only:
+            table.only(only, heuristics, groups, shielded)
+        else:
+            table.classical(heuristics, shielded, include_optimal, robust_shield)
+            if include_mpc:
+                table.mpc()
+            table.learned(groups, cache, shielded)
+            table.time_scores()
         entries += table.entries
         traces[name] = table.traces
         if verbose:
@@ -217,6 +225,21 @@ class _ConditionTable:
             self.add(ROBUST_LABEL, "pd", None, "pd", runs, None, note=ROBUST_NOTE, shielded=True,
                      shield_range=ROBUST_RANGES)
 
+    def only(self, kinds, heuristics: dict, groups: dict, shielded) -> None:
+        """The rows of ``kinds`` (ONLY_ROWS) alone, as the full table computes them."""
+        for kind in kinds:
+            if kind == "mpc":
+                self.mpc()
+            elif kind == "robust-shield":
+                self.robust_shield()
+            elif kind == "learned-shielded":  # the heuristic's episodes first: P(faster than heuristic)
+                scratch = _ConditionTable(self.condition, self.episodes, False, self.cache)
+                scratch.classical(heuristics, shielded, include_optimal=False, robust_shield=False)
+                self.reference = scratch.reference
+                self.learned(groups, self.cache, shielded, shields=(True,))
+            else:
+                raise UserError(f"--only: unknown kind of row {kind!r}; the kinds are {sorted(ONLY_ROWS)}")
+
     def mpc(self) -> None:
         """The nonlinear MPC with its nominal model in both control modes, and its solve times."""
         for label, mode, note in MPC_ROWS:
@@ -268,6 +291,47 @@ def time_score_reference(labels) -> tuple[str, str] | None:
     zero = "pd" + SHIELD_SUFFIX
     one = next((label for label in TIME_SCORE_REFERENCES if label in labels), None)
     return None if zero not in labels or one is None else (zero, one)
+
+
+ONLY_ROWS = {
+    "mpc": lambda e: e["kind"] == "mpc",
+    "robust-shield": lambda e: e["name"] == ROBUST_LABEL,
+    "learned-shielded": lambda e: e["kind"] in ("learned", "offline") and e["name"].endswith(SHIELD_SUFFIX),
+}
+"""the kinds of row ``compare --only`` evaluates alone (after a change to that policy alone, so as
+not to re-evaluate every learned run): which entries they are"""
+
+
+def merge_entries(published: list[dict], fresh: list[dict], kinds) -> list[dict]:
+    """``published`` entries with the rows of ``kinds`` (ONLY_ROWS) of every condition ``fresh``
+    covers replaced by ``fresh``'s: a row kept where it was, a new one after its unshielded twin,
+    else after the last row of its kind in its condition, else at the condition's end. The other
+    entries are kept as published."""
+    chosen = [ONLY_ROWS[k] for k in kinds]
+
+    def picked(e: dict) -> bool:
+        return any(c(e) for c in chosen)
+
+    conditions = {e["condition"] for e in fresh}
+    policies = list(published)
+    at_old = {(e["condition"], e["name"]): i for i, e in enumerate(policies) if picked(e)}
+    replaced = {}
+    for entry_ in fresh:
+        key = (entry_["condition"], entry_["name"])
+        if key in at_old:
+            replaced[at_old[key]] = entry_
+    policies = [replaced.get(i, e) for i, e in enumerate(policies)
+                if i in replaced or not (picked(e) and e["condition"] in conditions)]
+    for entry_ in fresh:
+        if (entry_["condition"], entry_["name"]) in at_old:
+            continue
+        names = [i for i, e in enumerate(policies) if e["condition"] == entry_["condition"]]
+        twin_name = entry_["name"][:-len(SHIELD_SUFFIX)] if entry_["name"].endswith(SHIELD_SUFFIX) else None
+        twin = [i for i in names if policies[i]["name"] == twin_name]
+        kind = [i for i in names if picked(policies[i]) or policies[i]["kind"] == entry_["kind"]]
+        where = twin or kind or names
+        policies.insert(where[-1] + 1 if where else len(policies), entry_)
+    return policies
 
 
 def _compare_condition(arguments: tuple) -> tuple[list[dict], dict]:

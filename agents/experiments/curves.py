@@ -20,6 +20,7 @@ from agents.experiments.tuning import tune_heuristic
 from agents.files import write_json
 from agents.policies import DecHeuristic, PDPolicy
 from scara_gym.benchmark.protocol import evaluate, noise_condition, shift_condition
+from scara_gym.model.checks import UserError
 from scara_gym.wrappers import Shield
 
 CURVES = {
@@ -56,6 +57,28 @@ def robustness_curves(runs_root: Path | None, episodes: int = 20, learned: tuple
     groups = {k: v for k, v in (learned_runs(runs_root) if runs_root else {}).items() if k[0] in learned}
     return {"episodes": episodes, "curves": curve_points(classical, groups, episodes, cache, verbose),
             "heuristic": tuned}
+
+
+ONLY_CURVES = {"robust-shield": (ROBUST_LABEL, robust_shield_pd)}
+"""the policies ``curves --only`` evaluates alone: kind -> (label, factory of the env)"""
+
+
+def merge_curves(published: dict, kinds, verbose: bool = True) -> dict:
+    """``published`` curves (curves.json's record) with the points of ``kinds`` (ONLY_CURVES)
+    evaluated by the curves' own loop (curve_points: the same conditions, and the published
+    episode count) and put in, replacing theirs; every other policy's points are kept as
+    published. UserError where the published factors are not today's."""
+    classical = {ONLY_CURVES[k][0]: ONLY_CURVES[k][1] for k in kinds}
+    fresh = curve_points(classical, {}, published["episodes"], verbose=verbose)
+    data = {**published, "curves": {k: {**v, "policies": dict(v["policies"])} for k, v in published["curves"].items()}}
+    for curve, points in fresh.items():
+        if curve not in data["curves"] or points["factors"] != data["curves"][curve]["factors"]:
+            had = data["curves"].get(curve, {}).get("factors")
+            raise UserError(f"--merge: curve {curve!r} has the factors {had} there, not today's {points['factors']}; "
+                            "run the curves again in full")
+        for label in classical:
+            data["curves"][curve]["policies"][label] = points["policies"][label]
+    return data
 
 
 def curve_points(classical: dict, groups: dict, episodes: int, cache: Path | None = None,

@@ -59,7 +59,7 @@ from agents.algorithms.offline_data import (  # noqa: F401  (the datasets' safe 
     environment,
     load,
 )
-from agents.files import write_digests, write_json
+from agents.files import published_runs, require_published_runs, write_digests, write_json
 from scara_gym import __version__
 from scara_gym.benchmark.episodes import run_episodes
 from scara_gym.benchmark.protocol import evaluate, tuning
@@ -90,8 +90,6 @@ TUNING_EPISODES = 30
 MEDIUM_STEPS = 300_000
 """the medium agent's training budget (the engineered PPO runs train 1-4M steps)"""
 CODE_PERMALINK = f"scara_gym {__version__}: agents/experiments/datasets.py"
-RUNS = Path("docs/results/runs")
-"""the published runs the expert candidates come from"""
 _learned = "{runs}/" + DATASET_ENV_ID + "/pd/{name}/seed{seed}"  # the published runs
 EXPERT_CANDIDATES = {
     "c11": ["shield:pd"] + [f"torchppo:{_learned.format(runs='{runs}', name='torch-ppo-residual-fast-starts', seed=s)}"
@@ -103,6 +101,19 @@ EXPERT_CANDIDATES = {
 """task -> the policy specs (agents.algorithms.loaders.load_policy) its expert is picked from:
 PD behind the shield, and the published learned runs that do best on the task (alone, and behind
 the shield where they collide); ``{runs}`` is the runs folder"""
+PUBLISHED_EXPERTS = {
+    "c11": {"policy": "torchppo:{runs}/Scara-C11-v1/pd/torch-ppo-residual-fast-starts/seed4",
+            "scores": (-22.73179607251694, 35.56060983430466)},
+    "random-targets": {"policy": "shield:pd", "scores": (-22.228404716813028, 34.374758477071474)},
+}
+"""task -> the expert pick_expert picks from the published runs and its reference_scores (random
+actions', the expert's) as this version measures them: what a tier that does not run the expert
+(random, medium, medium-replay) records where the published runs are not at hand
+(tests/agents/test_datasets.py checks them against the runs). The -v0 datasets' published
+scores (docs/results/datasets.json) were measured by an earlier version: the c11 expert's 1.6e-6
+lower."""
+EXPERT_TIERS = ("expert", "mixed")
+"""the tiers whose episodes the expert acts in: they need the published runs"""
 MEDIUM_FIELDS = {
     "c11": {"residual_scale": (2.5, 2.5, 0.05), "residual_deadzone": 0.5, "randomize_start": True},
     "random-targets": {"residual_scale": (2.5, 2.5, 0.05), "residual_deadzone": 0.5, "randomize_target": True},
@@ -226,7 +237,7 @@ def _as_arrays(infos: dict) -> dict:
     return {k: (_as_arrays(v) if isinstance(v, dict) else np.asarray(v)) for k, v in infos.items()}
 
 
-def pick_expert(task: str, runs: Path = RUNS, episodes: int = TUNING_EPISODES) -> dict:
+def pick_expert(task: str, runs: Path, episodes: int = TUNING_EPISODES) -> dict:
     """The task's expert: among EXPERT_CANDIDATES, those without a collision on the tuning set
     of the task's condition (scara_gym.benchmark.protocol.tuning: never an evaluation seed), the
     highest success rate, then the shortest mean time to target. Returns the record: the spec,
@@ -316,13 +327,14 @@ def reference_scores(task: str, expert: str) -> tuple[float, float]:
     return float(low), float(high)
 
 
-def build(name: str, episodes: int | None = None, out: Path | None = None, runs: Path = RUNS,
+def build(name: str, episodes: int | None = None, out: Path | None = None, runs: Path | None = None,
           work: Path | None = None, verbose: bool = True, expert: dict | None = None,
           scores: tuple[float, float] | None = None, medium: tuple[Path, list] | None = None):
     """Write the dataset ``name`` (DATASETS) with ``episodes`` episodes (default: its own count;
     medium-replay: the first of the medium run's training episodes, default all) into Minari's
     data folder, or ``out`` (it becomes MINARI_DATASETS_PATH). runs: the published runs the
-    expert comes from; work: where the medium agent trains (default: a temporary folder);
+    expert comes from (default: agents.files.published_runs; without them a tier outside
+    EXPERT_TIERS records PUBLISHED_EXPERTS, the others are refused in one line); work: where the medium agent trains (default: a temporary folder);
     expert: pick_expert's record and scores: reference_scores' (measured here where None; the
     reference max score is the expert's, so every tier needs it); medium: train_medium's result
     for the medium tiers (trained here where None). Returns the MinariDataset."""
@@ -332,9 +344,10 @@ def build(name: str, episodes: int | None = None, out: Path | None = None, runs:
         os.environ["MINARI_DATASETS_PATH"] = str(Path(out).resolve())
     _refuse_existing(name)  # before any work
     started = time.perf_counter()
+    if expert is None:  # before any episode: a missing runs folder is said at once
+        expert, scores = _expert(spec, runs, scores)
     env = make_env(spec.task)
     seeds = list(range(spec.seed, spec.seed + count))
-    expert = expert or pick_expert(spec.task, runs)
     low, high = scores or reference_scores(spec.task, expert["policy"])
     record: dict = {"package": "scara_gym", "version": __version__, "env_id": DATASET_ENV_ID,
                     "env_kwargs": {"control_mode": CONTROL_MODE, **TASKS[spec.task]}, "task": spec.task,
@@ -366,6 +379,23 @@ def build(name: str, episodes: int | None = None, out: Path | None = None, runs:
         print(f"{name}: {dataset.total_episodes} episodes, {dataset.total_steps} steps, "
               f"{dataset.storage.get_size():.1f} MB, {time.perf_counter() - started:.0f} s", flush=True)
     return dataset
+
+
+def _expert(spec: DatasetSpec, runs: Path | None, scores: tuple[float, float] | None) -> tuple[dict, tuple | None]:
+    """(pick_expert's record, the reference scores or None to measure them) for ``spec``: picked
+    among the published runs where they are at hand, else PUBLISHED_EXPERTS' record and scores for
+    a tier that does not run the expert; UserError naming what is missing otherwise."""
+    if runs is not None:  # named by the user: there, or refused
+        return pick_expert(spec.task, require_published_runs(runs)), scores
+    runs = published_runs()
+    if runs is not None and runs.is_dir():
+        return pick_expert(spec.task, runs), scores
+    if spec.tier in EXPERT_TIERS:
+        require_published_runs()  # one line: the runs are missing, and how to get them
+    published = PUBLISHED_EXPERTS[spec.task]
+    return ({"policy": published["policy"].format(runs="results/runs"), "rule": "recorded: the expert "
+             "pick_expert picked among the published runs (results/runs) and its reference scores, as published "
+             "with the -v0 datasets; the runs were not at hand"}, scores or published["scores"])
 
 
 def _refuse_existing(name: str) -> None:
@@ -425,11 +455,12 @@ def replay(dataset, episodes: int | None = None) -> int:
     return replayed
 
 
-def build_all(episodes: int | None = None, out: Path | None = None, runs: Path = RUNS,
+def build_all(episodes: int | None = None, out: Path | None = None, runs: Path | None = None,
               work: Path | None = None, summary: Path | None = None) -> list[dict]:
     """Every dataset of DATASETS (each task's expert picked once); rows of name, episodes, steps,
     size [MB] and build time [s], written as JSON to ``summary`` where given."""
     rows, experts, scores, mediums = [], {}, {}, {}
+    runs = require_published_runs(runs)  # the expert tiers need them
     with tempfile.TemporaryDirectory() as scratch:
         for name, spec in DATASETS.items():
             started = time.perf_counter()

@@ -7,7 +7,7 @@ stopped and started again, across sessions. Each run is locked (``RUN/.lock``) b
 training it (agents.files.exclusive, which every trainer takes too), and a worker passes over
 runs that are finished or locked, so that workers started side by side share a list. `publish` copies a finished run with only what evaluating it
 needs (the model, its normalizer, config and evaluation history; no snapshots, checkpoints or
-logs), so that results can be committed (``docs/results/runs``) and outlive the machine that
+logs), so that results can be committed (``results/runs``) and outlive the machine that
 trained them.
 """
 
@@ -25,6 +25,7 @@ from agents.experiments.registry import RunSpec, spec
 from agents.files import (
     PICKLE_FILES,
     POLICY_FILES,
+    PUBLISHED_LIST,
     RunLocked,
     claim_run_folder,
     exclusive,
@@ -58,10 +59,11 @@ def is_finished(run: Path) -> bool:
         (run / "model.zip").exists() or ((run / "model.pt").exists() and (run / "summary.json").exists()))
 
 
-def publish(run: Path, dest: Path) -> Path:
+def publish(run: Path, dest: Path, listing: Path | None = None) -> Path:
     """Copy a finished run's PUBLISHED files from ``run`` to ``dest`` (made, or refreshed), and add
-    its manifest to the package's published ones (agents.files.PUBLISHED_MANIFESTS): a run is
-    published only from a trusted folder (this machine's own run)."""
+    its manifest to the list of published manifests ``listing`` (default: the PUBLISHED_LIST of
+    the published runs' folder ``dest`` lies in, ``RUNS/ENV_ID/MODE/NAME/seedN``; never a file of
+    the installed package): a run is published only from a trusted folder (this machine's own run)."""
     run, dest = Path(run), Path(dest)
     if not is_finished(run):
         raise UserError(f"{run} is not a finished run (no config.json with model.zip or model.pt)")
@@ -75,7 +77,7 @@ def publish(run: Path, dest: Path) -> Path:
             (dest / name).parent.mkdir(parents=True, exist_ok=True)
             shutil.copy2(run / name, dest / name)
     write_digests(dest, POLICY_FILES)
-    publish_manifest(dest)
+    publish_manifest(dest, listing or dest.parents[3] / PUBLISHED_LIST)
     return dest
 
 

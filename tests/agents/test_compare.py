@@ -62,7 +62,7 @@ def test_comparison_command_writes_every_policy(tmp_path):
     from agents.algorithms.torch_ppo import Config, train as train_torch_ppo
     train_torch_ppo(Config(num_envs=2, num_steps=8, num_minibatches=1, update_epochs=1, total_timesteps=16, seed=3,
                            out=str(runs / LATEST_ENV_ID / "pd" / "torch-ppo" / "seed3")))
-    # what is committed (docs/results/runs): the finished runs, model and history only
+    # what is committed (results/runs): the finished runs, model and history only
     published = tmp_path / "published"
     from agents.cli import run
     assert len(run(["campaign", "td3", "--seeds", "0", "1", "2", "--runs", str(runs),
@@ -414,3 +414,70 @@ def test_a_bad_cache_entry_is_evaluated_again(tmp_path, damage):
     assert np.array_equal(again["energy"], first["energy"]) and len(again["traces"]) == 1
     evaluation.cached_evaluation(tmp_path, "x", [], {"what": damage}, run)
     assert len(runs) == 2  # and kept whole again
+
+
+def test_only_and_merge_put_one_kind_of_row_into_a_published_comparison(tmp_path, monkeypatch):
+    """``compare --only KIND --merge FILE``: the rows of that kind evaluated alone (the same
+    episodes as the full table computes them), put into a published comparison beside their kind,
+    the other entries kept as published, the command recorded; ``curves --only --merge`` alike."""
+    from agents.cli import run
+    from agents.experiments import curves as curves_module
+    from scara_gym.benchmark.protocol import protocol_record
+
+    monkeypatch.setattr(comparison, "tuned_heuristics", lambda verbose=False: HEURISTICS)
+    kwargs = dict(episodes=1, verbose=False, heuristics=HEURISTICS, include_optimal=False, include_mpc=False)
+    full = comparison.compare(None, ["wall-closer"], **kwargs)[0]  # with the robust shield's row
+    published = [e for e in full if e["name"] != comparison.ROBUST_LABEL]
+    path = tmp_path / "comparison.json"
+    path.write_text(json.dumps({"env_id": "x", "command": "scara-agents compare (published)",
+                                "conditions": protocol_record(["wall-closer"]), "targets": [],
+                                "policies": published}))
+    empty = tmp_path / "no-runs"
+    empty.mkdir()
+    entries = run(["compare", "--runs", str(empty), "--only", "robust-shield", "--merge", str(path),
+                   "--out", str(tmp_path / "out")])
+    names = [e["name"] for e in entries]
+    assert names == [e["name"] for e in full]  # after PD's rows, where the full table has it
+    fresh = entries[names.index(comparison.ROBUST_LABEL)]
+    robust = full[names.index(comparison.ROBUST_LABEL)]
+    assert {k: fresh[k] for k in KEYS} == {k: robust[k] for k in KEYS}  # the same episodes, the same figures
+    assert [e for e in entries if e is not fresh] == published  # the others as published
+    written = json.loads((tmp_path / "out" / "comparison.json").read_text())
+    assert written["command"] == "scara-agents compare (published)"
+    assert written["refreshed_by"]["robust-shield"].startswith("scara-agents compare --runs")
+    assert written["policies"] == entries and written["targets"] == target_checks(entries)
+    assert (tmp_path / "out" / "comparison.md").exists() and not list((tmp_path / "out").glob("*.png"))
+    again = comparison.merge_entries(entries, [fresh], ["robust-shield"])  # replaced in place, not added
+    assert [e["name"] for e in again] == names
+
+    monkeypatch.setattr(curves_module, "CURVES", {"load mass": ("arm.load_mass", (1.0, 2.0))})
+    shielded = {"pd + shield": lambda env: comparison.Shield(env, comparison.PDPolicy(env))}
+    points = curves_module.curve_points(shielded, {}, 1, verbose=False)
+    path = tmp_path / "curves.json"
+    path.write_text(json.dumps({"episodes": 1, "curves": points, "command": "scara-agents curves (published)"}))
+    data = run(["curves", "--only", "robust-shield", "--merge", str(path), "--out", str(tmp_path / "curves")])
+    policies = data["curves"]["load mass"]["policies"]
+    assert policies["pd + shield"] == points["load mass"]["policies"]["pd + shield"]
+    assert policies[comparison.ROBUST_LABEL]["success"] == [1.0, 1.0]
+    assert data["command"] == "scara-agents curves (published)" and "robust-shield" in data["refreshed_by"]
+    assert (tmp_path / "curves" / "comparison_robustness.png").exists()
+    monkeypatch.setattr(curves_module, "CURVES", {"load mass": ("arm.load_mass", (1.0, 3.0))})
+    with pytest.raises(comparison.UserError, match="not today's"):
+        curves_module.merge_curves(json.loads(path.read_text()), ["robust-shield"], verbose=False)
+
+
+def test_merged_rows_go_beside_their_twin_or_their_kind_and_the_rest_is_kept():
+    def row(condition, name, kind, value=0.0):
+        return {"condition": condition, "name": name, "kind": kind, "time_iqm": value}
+
+    published = [row("a", "pd", "pd"), row("a", "mpc", "mpc"), row("a", "ppo", "learned"), row("a", "sac", "learned"),
+                 row("b", "pd", "pd"), row("b", "mpc", "mpc"), row("b", "mpc (pd)", "mpc"), row("b", "ppo", "learned")]
+    fresh = [row("a", "ppo + shield", "learned", 1.0), row("b", "ppo + shield", "learned", 2.0)]
+    merged = comparison.merge_entries(published, fresh, ["learned-shielded"])
+    assert [(e["condition"], e["name"]) for e in merged] == [
+        ("a", "pd"), ("a", "mpc"), ("a", "ppo"), ("a", "ppo + shield"), ("a", "sac"),
+        ("b", "pd"), ("b", "mpc"), ("b", "mpc (pd)"), ("b", "ppo"), ("b", "ppo + shield")]
+    fresh = [row("b", "mpc", "mpc", 3.0)]  # b's "mpc (pd)" is not in the fresh rows: gone; a's kept
+    merged = comparison.merge_entries(merged, fresh, ["mpc"])
+    assert [e["time_iqm"] for e in merged if e["kind"] == "mpc"] == [0.0, 3.0]
+    assert [e["name"] for e in merged if e["condition"] == "b"] == ["pd", "mpc", "ppo", "ppo + shield"]

@@ -7,6 +7,7 @@ import pytest
 
 minari = pytest.importorskip("minari")
 
+from agents import files  # noqa: E402
 from agents.algorithms.bc import BCPolicy, train as train_bc  # noqa: E402
 from agents.algorithms.bc_config import BCConfig  # noqa: E402
 from agents.cli import run  # noqa: E402
@@ -43,6 +44,27 @@ def test_the_random_dataset_built_by_the_command_loads_and_replays_bit_for_bit(m
     assert set(episode.infos["reward_terms"]) == set(REWARD_TERMS)
     terms = sum(episode.infos["reward_terms"][t][1:] for t in REWARD_TERMS)
     np.testing.assert_allclose(terms, episode.rewards, rtol=1e-12, atol=1e-12)  # the terms sum to the reward
+    # the pick and the scores recorded for a build without the published runs are what they give
+    published = datasets.PUBLISHED_EXPERTS["c11"]
+    assert record["expert"]["policy"] == published["policy"].format(runs=files.CHECKOUT_RUNS)
+    assert (metadata["ref_min_score"], metadata["ref_max_score"]) == published["scores"]
+
+
+def test_the_random_tier_needs_no_published_runs_and_the_expert_tier_says_how_to_get_them(tmp_path, monkeypatch,
+                                                                                           capsys):
+    monkeypatch.setattr(files, "CHECKOUT_RUNS", tmp_path / "no-clone")  # as an installed package
+    monkeypatch.setenv("MINARI_DATASETS_PATH", str(tmp_path / "minari"))
+    run(["datasets", "build", "scara/c11/random-v0", "--episodes", "2"])
+    dataset = minari.load_dataset("scara/c11/random-v0")
+    metadata = dataset.storage.metadata
+    record = json.loads(metadata["description"])
+    assert record["expert"]["rule"].startswith("recorded") and datasets.replay(dataset) == 2
+    assert (metadata["ref_min_score"], metadata["ref_max_score"]) == datasets.PUBLISHED_EXPERTS["c11"]["scores"]
+    with pytest.raises(SystemExit) as exit_:
+        run(["datasets", "build", "scara/c11/expert-v0", "--episodes", "2"])
+    assert exit_.value.code == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "SCARA_GYM_PUBLISHED_RUNS=CLONE/results/runs" in err
 
 
 def test_a_replay_notices_a_changed_action(minari_folder):

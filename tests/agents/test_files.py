@@ -287,17 +287,54 @@ def test_a_run_killed_at_random_instants_resumes_to_the_same_end(tmp_path):
 
 
 def test_every_shipped_and_published_model_folder_matches_its_manifest_and_is_published():
+    """The shipped models' manifests are the package's list (agents/shipped_manifests.txt), the
+    published runs' the list beside them (results/runs/published_manifests.txt): each folder in
+    its own list, and nothing else in either."""
     from pathlib import Path
 
     root = Path(__file__).resolve().parents[2]
-    folders = [*root.glob("agents/models/*"), *root.glob("docs/results/runs/*/*/*/seed*")]
-    assert len(folders) > 50
-    published = set(files.PUBLISHED_MANIFESTS.read_text().split())  # the package's list, not the tests' copy
-    for folder in folders:
-        assert (folder / files.DIGESTS).exists(), folder
-        files.verify_digests(folder)
-        assert files.manifest_digest(folder) in published, folder  # trusted on every machine
-    assert len(published) == len({files.manifest_digest(f) for f in folders})  # and nothing else
+    lists = {"agents/models/*": files.SHIPPED_MANIFESTS,
+             "results/runs/*/*/*/seed*": root / "results" / "runs" / files.PUBLISHED_LIST}
+    assert files.CHECKOUT_RUNS == root / "results" / "runs"
+    total = 0
+    for pattern, listing in lists.items():
+        folders = list(root.glob(pattern))
+        total += len(folders)
+        listed = set(listing.read_text().split())  # the committed list, not the tests' copy
+        for folder in folders:
+            assert (folder / files.DIGESTS).exists(), folder
+            files.verify_digests(folder)
+            assert files.manifest_digest(folder) in listed, folder  # trusted on every machine
+        assert len(listed) == len({files.manifest_digest(f) for f in folders})  # and nothing else
+    assert total > 50
+
+
+def test_published_runs_are_trusted_where_the_user_says_and_published_beside_them(tmp_path, monkeypatch):
+    """A run published into a folder of runs is listed in that folder's published_manifests.txt
+    (never a file of the package), and trusted where that folder is the published runs
+    ($SCARA_GYM_PUBLISHED_RUNS, or the clone's results/runs); without any, a command that needs
+    them says in one line how to get them."""
+    monkeypatch.delenv(files.PUBLISHED_MANIFESTS_ENV)
+    monkeypatch.delenv(files.PUBLISHED_RUNS_ENV, raising=False)
+    monkeypatch.setattr(files, "CHECKOUT_RUNS", tmp_path / "no-clone" / "results" / "runs")
+    runs = tmp_path / "published"
+    run = runs / "Scara-C11-v1" / "pd" / "some-run" / "seed0"
+    run.mkdir(parents=True)
+    (run / "config.json").write_text("{}")
+    files.write_digests(run, ["config.json"])
+    assert files.published_runs() is None and not files.is_trusted(run)
+    with pytest.raises(files.UserError, match="SCARA_GYM_PUBLISHED_RUNS=CLONE/results/runs"):
+        files.require_published_runs()
+    with pytest.raises(files.UserError, match="no folder '/nowhere' of published runs"):
+        files.require_published_runs("/nowhere")
+    files.publish_manifest(run, runs / files.PUBLISHED_LIST)
+    assert (runs / files.PUBLISHED_LIST).read_text() == files.manifest_digest(run) + "\n"
+    assert not files.is_trusted(run)  # a list is read only where the user says the published runs are
+    monkeypatch.setenv(files.PUBLISHED_RUNS_ENV, str(runs))
+    assert files.published_runs() == runs and files.is_trusted(run) and files.require_published_runs() == runs
+    monkeypatch.delenv(files.PUBLISHED_RUNS_ENV)
+    monkeypatch.setattr(files, "CHECKOUT_RUNS", runs)  # a clone's results/runs
+    assert files.published_runs() == runs and files.is_trusted(run)
 
 
 def test_a_corrupted_model_file_is_refused_by_its_digest(tmp_path):

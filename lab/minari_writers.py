@@ -1,7 +1,8 @@
+# Lab notebook, not maintained (lab/README.md): written for one entry of docs/experiments.md, on the code of its day.
 """Minari's two writers for the random tier, side by side: DataCollector (needs JAX: pip install
 "minari[create]") and create_dataset_from_buffers from the package's own loop (docs/datasets.md).
 
-    python docs/scripts/minari_writers.py
+    python lab/minari_writers.py
 
 DataCollector records no infos here: with record_infos=True it fails on this env, whose step infos
 differ from its reset info and carry reach_time only on success."""

@@ -1,7 +1,8 @@
+# Lab notebook, not maintained (lab/README.md): written for one entry of docs/experiments.md, on the code of its day.
 """The MPC's per-step solve time and outcomes on a condition's tuning episodes, for one
 configuration (the experiments log, 2026-12-03).
 
-    python docs/scripts/mpc_solve_times.py random-shifts 4 "{'horizon': 20}" [voltage|pd]
+    python lab/mpc_solve_times.py random-shifts 4 "{'horizon': 20}" [voltage|pd]
 
 The configuration is a Python literal of ``MPCConfig`` fields (``ast.literal_eval``: no code runs);
 the last argument the environment's control mode (default "voltage").

@@ -1,8 +1,9 @@
+# Lab notebook, not maintained (lab/README.md): written for one entry of docs/experiments.md, on the code of its day.
 """Per-group tolerance weights in the hybrid integrator: accuracy at `scara-c11 accuracy`'s targets
 and the right-hand sides per control step, against v2's plain tolerances (the experiments log,
 2026-12-03, "Weighting the tolerances by state group").
 
-    PYTHONPATH=. python docs/scripts/tolerance_weights.py [SEEDS]
+    PYTHONPATH=. python lab/tolerance_weights.py [SEEDS]
 
 Accuracy over SEEDS x 200 episodes (seeds 0..SEEDS-1 of the episode plans) against the unweighted
 rtol 1e-10 run, at v2's rtol 1e-7 / atol 1e-9; then the compiled step's time per control step

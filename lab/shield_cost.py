@@ -1,9 +1,10 @@
+# Lab notebook, not maintained (lab/README.md): written for one entry of docs/experiments.md, on the code of its day.
 """The robust shield's cost per decision (us), the zone's (this tree) beside an earlier commit's, in one
 sitting: PD on random-shifts' first evaluation episodes and the wall-hugger on issue 53's robot A from
 c11-starts' first starts,
 each episode behind both shields in turn (the experiments log, 2026-12-05).
 
-    python docs/scripts/shield_cost.py dfe4f9e 5     # today's shield against the one before issue 53
+    python lab/shield_cost.py dfe4f9e 5     # today's shield against the one before issue 53
 """
 
 import importlib.util

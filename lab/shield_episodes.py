@@ -1,9 +1,10 @@
+# Lab notebook, not maintained (lab/README.md): written for one entry of docs/experiments.md, on the code of its day.
 """PD behind the robust shield ("all" ranges) on a condition's episodes: every episode that
 collides or does not arrive, with its parameters, and the totals (the experiments log, 2026-12-03).
 
-    python docs/scripts/shield_episodes.py random-shifts 100 tuning     # the tuning episodes
-    python docs/scripts/shield_episodes.py random-shifts 100 3000000000  # episodes from another seed
-    python docs/scripts/shield_episodes.py random-shifts 30              # the evaluation episodes
+    python lab/shield_episodes.py random-shifts 100 tuning     # the tuning episodes
+    python lab/shield_episodes.py random-shifts 100 3000000000  # episodes from another seed
+    python lab/shield_episodes.py random-shifts 30              # the evaluation episodes
 """
 
 import sys

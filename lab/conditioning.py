@@ -1,3 +1,4 @@
+# Lab notebook, not maintained (lab/README.md): written for one entry of docs/experiments.md, on the code of its day.
 """How well posed `scara-c11 accuracy`'s targets are, and what exact switching costs at each tolerance
 (the experiments log, 2026-12-04, "the conditioning of the accuracy targets, and the cost of exact
 switching at each tolerance").
@@ -14,7 +15,7 @@ Prints, in one sitting on this machine:
 3. the compiled step's time per control step for the same integrations, best of 5 passes over 1,500
    random actions in each control mode, all in one sitting.
 
-    PYTHONPATH=. python docs/scripts/conditioning.py [--seeds 12] [--skip-accuracy] [--skip-timing]
+    PYTHONPATH=. python lab/conditioning.py [--seeds 12] [--skip-accuracy] [--skip-timing]
 
 About 15 minutes on 2 cores (the accuracy section about 12).
 """

@@ -1,9 +1,10 @@
+# Lab notebook, not maintained (lab/README.md): written for one entry of docs/experiments.md, on the code of its day.
 """Assumption D of the robust shield (scara_gym.wrappers.shield): how far robots drawn inside the "all"
 ranges leave the span of the shield's models (tip x, tool height) along the rollouts it checks (the
 policy's action, then the backup to its set-point), at states along shielded adversarial episodes
 (the experiments log, 2026-12-05).
 
-    python docs/scripts/shield_span.py 8 24     # 8 episodes, 24 robots drawn per episode
+    python lab/shield_span.py 8 24     # 8 episodes, 24 robots drawn per episode
 """
 
 import sys

@@ -1,3 +1,4 @@
+# Lab notebook, not maintained (lab/README.md): written for one entry of docs/experiments.md, on the code of its day.
 """Where the speed targets of "The exact environment at full speed" meet the accuracy targets (the
 experiments log, 2026-12-03, "the speed targets against the accuracy targets").
 
@@ -13,7 +14,7 @@ Prints, in one sitting on this machine:
 5. the single-file PPO's training steps/s on v1 and v2 (16 envs x 128 steps, minibatches of 64,
    10 epochs, 8,192 steps) and the time its 16-env vector env takes for one rollout.
 
-    PYTHONPATH=. python docs/scripts/speed_floor.py [--skip-accuracy] [--skip-ppo]
+    PYTHONPATH=. python lab/speed_floor.py [--skip-accuracy] [--skip-ppo]
 
 About 10 minutes on 2 cores (accuracy about 4, PPO about 2).
 """

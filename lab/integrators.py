@@ -1,7 +1,8 @@
+# Lab notebook, not maintained (lab/README.md): written for one entry of docs/experiments.md, on the code of its day.
 """Where Scara-C11-v2's right-hand sides go, and integrators that might spend fewer (the experiments
 log, 2026-12-02). Counts, not times: the figures do not depend on the machine's load.
 
-    python docs/scripts/integrators.py
+    python lab/integrators.py
 
 1. Per control step of random "pd" actions: right-hand sides, accepted and rejected steps, by the
    number of mode changes in the step (v0 beside v2).
