@@ -52,7 +52,7 @@ them and sink into a real wall between them):
 
 The certificate is therefore sound over the whole range under these **assumptions**, named, not
 proved: (D) a robot inside the ranges stays within ``dynamics_margin`` (default 5 mm) of the
-models' span along every rollout (measured with lab/shield_span.py: at most 4.1 mm in the
+models' span along every rollout (measured with docs/scripts/shield_span.py: at most 4.1 mm in the
 tip's x and 0.05 mm below in height, for 24 uniform draws at 94 certified states of 8 shielded
 adversarial episodes: within the margin, with little to spare; docs/experiments.md); (S) the
 backup's closed loop (PD on each axis) comes to rest at its set-point for every robot in the
