@@ -58,7 +58,9 @@ from agents.policies.mpc import (
     solve_time_summary,
 )
 from agents.policies.optimal.transcription import radau_coefficients
+from scara_gym.benchmark.protocol import get_condition, tuning
 from scara_gym.model import checks
+from scara_gym.model.checks import UserTypeError
 from scara_gym.model.symbolic import symbolic_model
 
 QP_SOLVERS = ("hpipm",)
@@ -94,7 +96,7 @@ class RTIConfig:
 
     def __post_init__(self) -> None:
         if not isinstance(self.mpc, MPCConfig):
-            raise TypeError(f"mpc must be an MPCConfig, got {type(self.mpc).__name__}")
+            raise UserTypeError(f"mpc must be an MPCConfig, got {type(self.mpc).__name__}")
         checks.integer("iterations", self.iterations, 1, 100)
         checks.integer("first_iterations", self.first_iterations, 1, 1000)
         checks.real("first_tol", self.first_tol, 0.0, 1.0, low_open=True)
@@ -102,7 +104,7 @@ class RTIConfig:
         checks.real("qp_inf", self.qp_inf, 10.0, 1e20)
         checks.choice("qp_solver", self.qp_solver, QP_SOLVERS)
         if not isinstance(self.qp_options, dict):
-            raise TypeError(f"qp_options must be a dict of HPIPM options, got {self.qp_options!r}")
+            raise UserTypeError(f"qp_options must be a dict of HPIPM options, got {self.qp_options!r}")
 
 
 class RTIMPCPolicy(MPCPolicy):
@@ -263,18 +265,15 @@ class RTIMPCPolicy(MPCPolicy):
     def __call__(self, obs: np.ndarray) -> np.ndarray:
         started = time.perf_counter()
         obs = np.asarray(obs, dtype=float)
-        x0 = np.concatenate([obs[Q], obs[RATES], np.clip(obs[CURRENTS], -self.current_limit, self.current_limit)])
-        target = obs[Q] + obs[TARGET_ERROR]
-        wall_x = obs[TIP_X] - obs[WALL_DISTANCE]
-        wall_height = obs[Q][2] - obs[HEIGHT_MARGIN]
-        first_limit = self.wide_limit if obs[CRITICAL] > 0.5 else self.voltage_limit
         iterations, first = self.rti.iterations, self.guess is None
         if first:
             self.side = 1.0 if obs[WALL_DISTANCE] >= 0 else -1.0
+        x0, parameters, first_limit = self.measured(obs)
+        wall_x, wall_height = parameters[3:5]
+        if first:
             block = np.concatenate([np.zeros(3), np.tile(x0, 3), np.zeros(4)])
             self.guess = np.append(x0, np.tile(block, self.config.horizon))
             iterations = self.rti.first_iterations
-        parameters = np.concatenate([target, [wall_x, wall_height, self.side]])
         scale = self._step_scale(first_limit)
         for _ in range(iterations):
             ends = self.predict(self.guess).full().T
@@ -290,6 +289,16 @@ class RTIMPCPolicy(MPCPolicy):
         self._shift()
         self.solve_times.append(time.perf_counter() - started)
         return action
+
+    def measured(self, obs: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """What the problem takes from an observation, as MPCPolicy reads it: the start state
+        (currents clipped to their limits), the parameters (target, wall plane, wall height, the
+        episode's side of the wall: ``side`` set) and the first step's voltage limits."""
+        x0 = np.concatenate([obs[Q], obs[RATES], np.clip(obs[CURRENTS], -self.current_limit, self.current_limit)])
+        target = obs[Q] + obs[TARGET_ERROR]
+        wall_x, wall_height = obs[TIP_X] - obs[WALL_DISTANCE], obs[Q][2] - obs[HEIGHT_MARGIN]
+        first_limit = self.wide_limit if obs[CRITICAL] > 0.5 else self.voltage_limit
+        return x0, np.concatenate([target, [wall_x, wall_height, self.side]]), first_limit
 
     def _step_scale(self, first_limit: np.ndarray) -> np.ndarray:
         """What a step is measured against (first_tol): the voltages' limits, 1 elsewhere."""
@@ -339,8 +348,6 @@ def benchmark(condition: str = "c11-starts", episodes: int = 8, mode: str = "vol
         policy name -> {"step_time": median/p95/worst [s] of the time per control step (the whole
         call), "reach_times", "success", "collisions" (per episode)}.
     """
-    from scara_gym.benchmark.protocol import get_condition, tuning
-
     checks.choice("mode", mode, ("voltage", "pd"))
     chosen = get_condition(condition) if condition == "c11" else tuning(condition, episodes)
     results = {}
