@@ -346,7 +346,9 @@ def benchmark(condition: str = "c11-starts", episodes: int = 8, mode: str = "vol
 
     Returns:
         policy name -> {"step_time": median/p95/worst [s] of the time per control step (the whole
-        call), "reach_times", "success", "collisions" (per episode)}.
+        call), "reach_times", "success", "collisions" (per episode), "failures" (QPs HPIPM, or
+        solves IPOPT, did not converge)}, and "reach_ratio": the RTI's reach time over the MPC's
+        on the episodes both ran clean.
     """
     checks.choice("mode", mode, ("voltage", "pd"))
     chosen = get_condition(condition) if condition == "c11" else tuning(condition, episodes)
@@ -354,7 +356,7 @@ def benchmark(condition: str = "c11-starts", episodes: int = 8, mode: str = "vol
     for name, make in (("mpc", lambda env: MPCPolicy(env, mpc)), ("mpc-rti", lambda env: RTIMPCPolicy(env, rti))):
         env = chosen.make_env(mode)
         policy = make(env)
-        step_times, reach, success, collisions = [], [], [], []
+        step_times, reach, success, collisions, lengths = [], [], [], [], []
         for seed in chosen.seeds():
             policy.reset()
             obs, info = env.reset(seed=seed, options=chosen.options(seed))
@@ -365,16 +367,21 @@ def benchmark(condition: str = "c11-starts", episodes: int = 8, mode: str = "vol
                 step_times.append(time.perf_counter() - started)
                 obs, _, terminated, truncated, info = env.step(action)
                 done = terminated or truncated
+            lengths.append(len(step_times) - sum(lengths))
             success.append(bool(info["is_success"]))
             collisions.append(bool(info["collision"]))
             reach.append(float(info["time"]) if info["is_success"] else np.nan)
         env.close()
+        failures = policy.qp_failures if isinstance(policy, RTIMPCPolicy) else policy.failures
         results[name] = {"step_time": solve_time_summary(step_times), "reach_times": np.array(reach),
-                         "success": np.array(success), "collisions": np.array(collisions)}
+                         "success": np.array(success), "collisions": np.array(collisions), "failures": failures}
         s = results[name]["step_time"]
+        later = solve_time_summary(np.delete(step_times, np.cumsum([0, *lengths[:-1]])))
         out(f"{name:8s} {condition} {mode}, {len(success)} episodes: step ms median {1e3 * s['median']:.2f}, p95 "
-            f"{1e3 * s['p95']:.2f}, worst {1e3 * s['worst']:.2f} ({s['solves']} steps) | success {sum(success)}/"
-            f"{len(success)}, collisions {sum(collisions)}, mean reach time {np.nanmean(reach):.4f} s")
+            f"{1e3 * s['p95']:.2f}, worst {1e3 * s['worst']:.2f} ({s['solves']} steps; after each episode's first: "
+            f"worst {1e3 * later['worst']:.2f}) | success {sum(success)}/{len(success)}, collisions "
+            f"{sum(collisions)}, mean reach time {np.nanmean(reach):.4f} s | "
+            + ("QPs" if name == "mpc-rti" else "IPOPT solves") + f" not converged {failures}")
     a, b = results["mpc"], results["mpc-rti"]
     clean = a["success"] & ~a["collisions"] & b["success"] & ~b["collisions"]
     ratio = b["reach_times"][clean] / a["reach_times"][clean]
