@@ -28,8 +28,10 @@ optimum: up to ``first_iterations`` SQP steps are taken there, the phases replan
 the MPC's ``first_passes``. ``iterations`` > 1 takes more steps at every control step.
 
 ``solve_times`` keeps the wall-clock time of each control step's whole computation (the phases,
-the bounds, the linearization, the QP, the update), not the QP's alone; ``failures`` counts the QPs
-HPIPM did not solve to its tolerance (the step it stopped at is taken where it is finite).
+the bounds, the linearization, the QP, the update), not the QP's alone; ``qp_failures`` counts the
+QPs HPIPM did not solve to its tolerance (5-10 % of them, at its 50-iteration limit: the step it
+stopped at is taken where it is finite). In a "pd"-mode environment it commands the set-point for
+which the PD law gives the planned voltages, as the MPC does.
 
 `benchmark(condition, episodes, mode)` runs the MPC and the RTI on the same episodes (a
 condition's tuning draws, or the C11 episode) and prints, per policy, the time per control step
@@ -117,7 +119,7 @@ class RTIMPCPolicy(MPCPolicy):
 
     def __init__(self, env, config: RTIConfig | None = None) -> None:
         if config is not None and not isinstance(config, RTIConfig):
-            raise TypeError(f"config must be an RTIConfig or None, got {config!r}")
+            raise UserTypeError(f"config must be an RTIConfig or None, got {config!r}")
         self.rti = RTIConfig() if config is None else config
         self.qp_failures = 0
         super().__init__(env, self.rti.mpc)
