@@ -4,7 +4,8 @@ A spec is ``KIND`` or ``KIND:ARG``:
 
 - ``pd``; ``dec-continue[:d]`` and ``dec-restart[:d]`` (the seed's heuristic with trigger distance
   d [m]); ``optimal`` (the minimum-time reference, "voltage" mode); ``mpc`` (the nonlinear MPC
-  with its defaults, "voltage" mode);
+  with its defaults, "voltage" or "pd" mode); ``mpc-rti`` (the same problem by a real-time
+  iteration on HPIPM, agents.policies.mpc_rti, "voltage" or "pd" mode);
 - ``run:DIR``, or the bare folder ``DIR``: a finished run of any trainer, loaded by the trainer its
   folder records (agents.files.recorded_run: run.json, else its config.json);
 - ``sb3:DIR`` (any SB3 run: PPO, SAC, TD3), ``torchppo:DIR`` (a run of the single-file PPO),
@@ -31,12 +32,13 @@ from agents.algorithms.sb3.policy import PPOPolicy, SB3Policy, resolve_model
 from agents.files import recorded_run
 from agents.policies import DecHeuristic, PDPolicy
 from agents.policies.mpc import MPCPolicy
+from agents.policies.mpc_rti import RTIMPCPolicy
 from agents.policies.optimal import OptimalPolicy
 from scara_gym.model.checks import UserError
 from scara_gym.wrappers import Shield
 
-POLICY_SPECS = ("pd, dec-continue[:d], dec-restart[:d], optimal, mpc, RUN_DIR, run:RUN_DIR, ppo:NAME_OR_DIR, "
-                "sb3:RUN_DIR, torchppo:RUN_DIR, bc:RUN_DIR, shield:SPEC")
+POLICY_SPECS = ("pd, dec-continue[:d], dec-restart[:d], optimal, mpc, mpc-rti, RUN_DIR, run:RUN_DIR, "
+                "ppo:NAME_OR_DIR, sb3:RUN_DIR, torchppo:RUN_DIR, bc:RUN_DIR, shield:SPEC")
 """the specs load_policy reads, as the command line's help and errors name them"""
 
 
@@ -81,6 +83,13 @@ def _mpc(env, arg: str):
     return MPCPolicy(env)
 
 
+def _mpc_rti(env, arg: str):
+    if arg:
+        raise UserError("the real-time MPC is given as mpc-rti (its defaults; agents.policies.mpc_rti.RTIConfig "
+                        "sets the rest)")
+    return RTIMPCPolicy(env)
+
+
 def _shield(env, arg: str):
     if not arg:
         raise UserError("shielded policies are given as shield:SPEC, e.g. shield:pd or shield:torchppo:RUN_DIR")
@@ -112,6 +121,7 @@ LOADERS: dict[str, Callable] = {
     "dec-restart": _heuristic("restart"),
     "optimal": lambda env, arg: OptimalPolicy(env),
     "mpc": _mpc,
+    "mpc-rti": _mpc_rti,
     "run": _folder("run", _run),
     "ppo": _folder("ppo", PPOPolicy),
     "sb3": _folder("sb3", SB3Policy),

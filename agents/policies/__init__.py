@@ -5,6 +5,8 @@
 - `agents.policies.pd`: `PDPolicy`, the classical baseline;
 - `agents.policies.heuristic`: `DecHeuristic`, the seed paper's obstacle rule;
 - `agents.policies.optimal`: the minimum-time reference (CasADi, an install extra).
+- `agents.policies.mpc`, `agents.policies.mpc_rti`: the nonlinear MPC and its real-time iteration
+  (CasADi).
 
 Learned policies load with the algorithm that trained them (`agents.algorithms`).
 """

@@ -21,6 +21,7 @@ MISTAKES = [
     (["evaluate", "--policies", "dec-continue:abc"], "dec-continue"),
     (["evaluate", "--policies", "dec-restart:-1"], "critical_distance"),
     (["evaluate", "--policies", "mpc:horizon=3"], "the MPC is given as mpc"),
+    (["evaluate", "--policies", "mpc-rti:horizon=3"], "the real-time MPC is given as mpc-rti"),
     (["evaluate", "--policies", "optimal"], "control_mode='voltage'"),
     (["evaluate", "--condition", "c12"], "--condition: invalid choice: 'c12'"),
     (["evaluate", "--episodes", "0"], "--episodes must be >= 1"),

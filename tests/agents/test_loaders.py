@@ -16,7 +16,7 @@ from scara_gym.wrappers import Shield
 
 
 def test_every_spec_kind_has_its_loader_and_the_old_name_is_the_one_function():
-    assert {"pd", "dec-continue", "dec-restart", "optimal", "mpc", "run", "ppo", "sb3", "torchppo", "bc",
+    assert {"pd", "dec-continue", "dec-restart", "optimal", "mpc", "mpc-rti", "run", "ppo", "sb3", "torchppo", "bc",
             "shield"} == set(LOADERS)
     assert set(TRAINERS.values()) <= set(LOADERS)
     assert make_policy is load_policy
