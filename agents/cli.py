@@ -430,8 +430,8 @@ def _merged(flag: str, path: Path | None, only, name: str, keys: tuple[str, ...]
 
 def _add_learning_curve(sub) -> None:
     p = sub.add_parser("learning-curve", help="a learning-curve run's checkpoints scored at doubling budgets",
-                       description="Every seed's checkpoints of a run tagged 'learning-curve' scored at 250k, 500k, "
-                                   "1M, ... steps and its last on the tuning episodes of the condition it trains on "
+                       description="Every seed's checkpoints of a run tagged 'learning-curve' scored at its first checkpoint, twice it, "
+                                   "... and its last on the tuning episodes of the condition it trains on "
                                    "(agents.experiments.learning_curves): NAME.json (summary, plateau, raw episodes) "
                                    "and NAME.png under --out.")
     p.add_argument("name", metavar="NAME", help="a registered run tagged 'learning-curve'")

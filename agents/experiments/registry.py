@@ -84,6 +84,22 @@ FAST_WEIGHTS = {**ENGINEERED_WEIGHTS, "time": 50.0}
 """the time weighted 2.5x"""
 
 
+CURVE_DRAWS = {
+    "c11-starts": (" (starts from the start region)", "perturbed-starts"),
+    "random-targets": ("", "random-targets"),
+    "random-shifts": (" (physics and wall drawn per episode)", "domain-randomized"),
+}
+"""the conditions a learning-curve run trains on: what its description adds, its tag"""
+
+
+def _learning_curve_runs(algo: str, label: str, budget: str) -> list[RunSpec]:
+    """One learning-curve run of ``algo`` per condition of CURVE_DRAWS (its YAML block "pd-CONDITION")."""
+    return [RunSpec(f"{algo}-{condition}", "sb3", f"{label}, {algo}.yml's recipe on {condition}' draws{note}, {budget}: "
+                    "its learning curve", sb3_algorithm=algo, recipe=algo, variant=condition,
+                    tags=frozenset({"standard", "pilot", tag, "learning-curve"}), trained_on=condition)
+            for condition, (note, tag) in CURVE_DRAWS.items()]
+
+
 def _runs(*specs: RunSpec) -> dict[str, RunSpec]:
     return {spec.name: spec for spec in specs}
 
@@ -92,42 +108,9 @@ RUNS = _runs(
     RunSpec("ppo", "sb3", "SB3 PPO, ppo.yml", sb3_algorithm="ppo", recipe="ppo", tags=frozenset({"standard"})),
     RunSpec("sac", "sb3", "SB3 SAC, sac.yml", sb3_algorithm="sac", recipe="sac", tags=frozenset({"standard"})),
     RunSpec("td3", "sb3", "SB3 TD3, td3.yml", sb3_algorithm="td3", recipe="td3", tags=frozenset({"standard"})),
-    RunSpec("ppo-c11-starts", "sb3", "SB3 PPO, ppo.yml's recipe on c11-starts' draws (starts from the start region), "
-            "1e7 steps, a checkpoint every 250k: its learning curve", sb3_algorithm="ppo", recipe="ppo",
-            variant="c11-starts", tags=frozenset({"standard", "pilot", "perturbed-starts", "learning-curve"}),
-            trained_on="c11-starts"),
-    RunSpec("ppo-random-targets", "sb3", "SB3 PPO, ppo.yml's recipe on random-targets' draws, 1e7 steps, a "
-            "checkpoint every 250k: its learning curve", sb3_algorithm="ppo", recipe="ppo", variant="random-targets",
-            tags=frozenset({"standard", "pilot", "random-targets", "learning-curve"}),
-            trained_on="random-targets"),
-    RunSpec("ppo-random-shifts", "sb3", "SB3 PPO, ppo.yml's recipe on random-shifts' draws (physics and wall drawn "
-            "per episode), 1e7 steps, a checkpoint every 250k: its learning curve", sb3_algorithm="ppo", recipe="ppo",
-            variant="random-shifts", tags=frozenset({"standard", "pilot", "domain-randomized", "learning-curve"}),
-            trained_on="random-shifts"),
-    RunSpec("sac-c11-starts", "sb3", "SAC (sbx-rl's), sac.yml's recipe on c11-starts' draws (starts from the start "
-            "region), 1e6 steps, a checkpoint every 62.5k: its learning curve", sb3_algorithm="sac", recipe="sac",
-            variant="c11-starts", tags=frozenset({"standard", "pilot", "perturbed-starts", "learning-curve"}),
-            trained_on="c11-starts"),
-    RunSpec("sac-random-targets", "sb3", "SAC (sbx-rl's), sac.yml's recipe on random-targets' draws, 1e6 steps, a "
-            "checkpoint every 62.5k: its learning curve", sb3_algorithm="sac", recipe="sac",
-            variant="random-targets", tags=frozenset({"standard", "pilot", "random-targets", "learning-curve"}),
-            trained_on="random-targets"),
-    RunSpec("sac-random-shifts", "sb3", "SAC (sbx-rl's), sac.yml's recipe on random-shifts' draws (physics and wall "
-            "drawn per episode), 1e6 steps, a checkpoint every 62.5k: its learning curve", sb3_algorithm="sac",
-            recipe="sac", variant="random-shifts",
-            tags=frozenset({"standard", "pilot", "domain-randomized", "learning-curve"}), trained_on="random-shifts"),
-    RunSpec("td3-c11-starts", "sb3", "TD3 (sbx-rl's), td3.yml's recipe on c11-starts' draws (starts from the start "
-            "region), 1e6 steps, a checkpoint every 62.5k: its learning curve", sb3_algorithm="td3", recipe="td3",
-            variant="c11-starts", tags=frozenset({"standard", "pilot", "perturbed-starts", "learning-curve"}),
-            trained_on="c11-starts"),
-    RunSpec("td3-random-targets", "sb3", "TD3 (sbx-rl's), td3.yml's recipe on random-targets' draws, 1e6 steps, a "
-            "checkpoint every 62.5k: its learning curve", sb3_algorithm="td3", recipe="td3",
-            variant="random-targets", tags=frozenset({"standard", "pilot", "random-targets", "learning-curve"}),
-            trained_on="random-targets"),
-    RunSpec("td3-random-shifts", "sb3", "TD3 (sbx-rl's), td3.yml's recipe on random-shifts' draws (physics and wall "
-            "drawn per episode), 1e6 steps, a checkpoint every 62.5k: its learning curve", sb3_algorithm="td3",
-            recipe="td3", variant="random-shifts",
-            tags=frozenset({"standard", "pilot", "domain-randomized", "learning-curve"}), trained_on="random-shifts"),
+    *_learning_curve_runs("ppo", "SB3 PPO", "1e7 steps, a checkpoint every 250k"),
+    *_learning_curve_runs("sac", "SAC (sbx-rl's)", "1e6 steps, a checkpoint every 62.5k"),
+    *_learning_curve_runs("td3", "TD3 (sbx-rl's)", "1e6 steps, a checkpoint every 62.5k"),
     RunSpec("ppo-residual", "sb3", "SB3 PPO through the residual set-point, ppo_residual.yml's reward",
             sb3_algorithm="ppo", recipe="ppo-residual", tags=frozenset({"engineered", "residual"})),
     RunSpec("ppo-residual-dr", "sb3", "ppo-residual with physics and wall drawn per episode (block pd-dr)",
