@@ -33,11 +33,14 @@ from __future__ import annotations
 
 import hashlib
 import time
+from functools import partial
 from pathlib import Path
 
+from agents.algorithms.loaders import load_policy, run_spec
 from agents.experiments.evaluation import (
     cached_evaluation,
     condition_description,
+    decision_time,
     learned_episodes,
     learned_runs,
     mpc_episodes,
@@ -61,7 +64,7 @@ from agents.policies import (
     pd as policies_pd,
 )
 from agents.policies.optimal import SOLUTIONS, OptimalPolicy, policy as optimal_policy, solutions as optimal_solutions
-from scara_gym.benchmark.protocol import evaluate, get_condition
+from scara_gym.benchmark.protocol import ENV_ID, evaluate, get_condition
 from scara_gym.model.checks import UserError
 from scara_gym.wrappers import Shield, shield as shield_module
 
@@ -75,6 +78,16 @@ ROBUST_LABEL = f"pd + robust shield ({ROBUST_RANGES!r} ranges)"
 ROBUST_NOTE = (f"scara_gym.wrappers.Shield with the nominal parameters, robust over the {ROBUST_RANGES!r} ranges "
                "(their ends, the adverse corners and 8 draws, robust_seed 0)")
 HEURISTIC_VARIANTS = ("continue", "restart")
+
+
+def shield_pd(env) -> Shield:
+    """The "pd + shield" policy: PD behind the shield with the nominal parameters."""
+    return Shield(env, PDPolicy(env))
+
+
+def shipped_optimal(env) -> OptimalPolicy:
+    """The optimal replay from the shipped solutions only (a solve takes minutes to hours)."""
+    return OptimalPolicy(env, solve_missing=False)
 
 
 def robust_shield_pd(env) -> Shield:
@@ -104,7 +117,8 @@ def tuned_heuristics(verbose: bool = False) -> dict:
 def compare(runs_root: Path | None = Path("runs/baselines"), conditions: list[str] = ("c11",),
             episodes: int | None = None, include_optimal: bool = True, verbose: bool = True,
             cache: Path | None = None, shielded: tuple[str, ...] = SHIELDED, heuristics: dict | None = None,
-            pilots: bool = False, robust_shield: bool = True, include_mpc: bool = True, only: tuple[str, ...] = ()):
+            pilots: bool = False, robust_shield: bool = True, include_mpc: bool = True, only: tuple[str, ...] = (),
+            decision_times: bool = True):
     """Every policy in every condition: (entries, traces per condition). episodes: per condition
     (None: the condition's own count; a dict: condition -> count, None or missing for its own;
     the C11 episode is one). only: kinds of ONLY_ROWS, evaluated alone (every other row left
@@ -116,7 +130,11 @@ def compare(runs_root: Path | None = Path("runs/baselines"), conditions: list[st
     given. heuristics: tuned_heuristics() (computed here where None). pilots: also the runs
     tagged "pilot" (left out by default). robust_shield: PD behind the robust shield where the
     condition shifts the parameters. include_mpc: the MPC's entry (its evaluations are kept in
-    ``cache`` too; "solve_time": median, p95 and worst per control step [s]). Every entry says
+    ``cache`` too; "solve_time": median, p95 and worst per control step [s]). decision_times:
+    every entry's compute per control step ("decision_time": median and 95th percentile [s],
+    evaluation.decision_time, timed afresh on this machine over the condition's first episodes;
+    the MPC's is its solve time per control step). Every entry names the id it was scored on
+    ("env_id": the protocol's) and says
     whether a shield acts ("shielded") and for
     which parameters it is built ("shield_range": "nominal" or the robust ranges); a learned one
     names its runs' folder ("run") and carries their registry tags ("tags")."""
@@ -137,6 +155,8 @@ def compare(runs_root: Path | None = Path("runs/baselines"), conditions: list[st
                 table.mpc()
             table.learned(groups, cache, shielded)
             table.time_scores()
+        if decision_times:
+            table.decision_times()
         entries += table.entries
         traces[name] = table.traces
         if verbose:
@@ -162,15 +182,18 @@ class _ConditionTable:
         self.runs: list[list[dict]] = []  # each entry's per-episode arrays, for the normalized time score
         self.traces: dict = {}
         self.reference = None  # the heuristic learned agents are compared with: dec-continue at its tuned distance
+        self.factories: dict[str, tuple] = {}  # label -> (policy factory, control mode): its decisions timed
 
     def add(self, label, kind, algorithm, mode, runs, seeds, note="", train_seconds=None, shielded=False, tags=(),
-            run=None, shield_range=None) -> dict:
+            run=None, shield_range=None, factory=None) -> dict:
         e = {**entry(label, kind, algorithm, mode, self.condition.name, runs, seeds, note, train_seconds),
-             "shielded": shielded, "shield_range": shield_range or ("nominal" if shielded else None), "run": run,
+             "env_id": ENV_ID, "shielded": shielded, "shield_range": shield_range or ("nominal" if shielded else None), "run": run,
              "tags": sorted(tags)}
         self.entries.append(e)
         self.runs.append(runs)
         self.traces[label] = runs[0]["trace"]
+        if factory is not None:
+            self.factories[label] = (factory, mode)
         if self.verbose:
             print(f"[{self.condition.name}] {label}: success {rate_text(e['success_rate'])}, collisions "
                   f"{rate_text(e['collision_rate'])}, time IQM {e['time_iqm']:.4f} s {e['time_ci']}, "
@@ -191,39 +214,42 @@ class _ConditionTable:
     def classical(self, heuristics: dict, shielded, include_optimal: bool, robust_shield: bool = True) -> None:
         """PD (and behind the shield: the nominal one, and the robust one where the parameters
         shift), the heuristic at its tuned distance and with the margin, the optimal replay."""
-        self.add("pd", "pd", None, "pd", [self.run("pd", PDPolicy)], None)
-        self.add("pd" + SHIELD_SUFFIX, "pd", None, "pd", [self.run("shield:pd", lambda env: Shield(env, PDPolicy(env)))],
-                 None, note=SHIELD_NOTE, shielded=True)
+        self.add("pd", "pd", None, "pd", [self.run("pd", PDPolicy)], None, factory=PDPolicy)
+        self.add("pd" + SHIELD_SUFFIX, "pd", None, "pd", [self.run("shield:pd", shield_pd)],
+                 None, note=SHIELD_NOTE, shielded=True, factory=shield_pd)
         if robust_shield:
             self.robust_shield()
         for variant, tuned in heuristics.items():
             if tuned.get("distance") is None:
                 continue
             for label, distance in (("tuned", tuned["distance"]), ("margin", tuned["margin_distance"])):
-                runs = [self.run(f"dec-{variant}:{distance!r}",
-                                 lambda env, d=distance, v=variant: DecHeuristic(env, v, critical_distance=d))]
+                def heuristic(env, d=distance, v=variant):
+                    return DecHeuristic(env, v, critical_distance=d)
+
+                runs = [self.run(f"dec-{variant}:{distance!r}", heuristic)]
                 if variant == "continue" and label == "tuned":
                     self.reference = runs
                 self.add(f"dec-{variant}, {label} (d={distance:.4f} m)", "heuristic", None, "pd", runs, None,
                          note=f"trigger distance {distance:.4f} m, tuned once on the tuning set "
-                              f"(agents.experiments.tuning: {tuned['distance']:.4f} m)")
+                              f"(agents.experiments.tuning: {tuned['distance']:.4f} m)", factory=heuristic)
         if include_optimal and self.condition.name in OPTIMAL_CONDITIONS:
             try:  # the shipped solutions only: a solve takes minutes to hours
                 shipped = hashlib.sha256(b"".join(p.read_bytes() for p in sorted(SOLUTIONS.glob("*.json")))).hexdigest()
-                runs = [self.run(f"optimal:{shipped}", lambda env: OptimalPolicy(env, solve_missing=False), "voltage")]
+                runs = [self.run(f"optimal:{shipped}", shipped_optimal, "voltage")]
             except LookupError:
                 if self.verbose:
                     print(f"[{self.condition.name}] optimal: no shipped solution", flush=True)
             else:
                 self.add("optimal", "optimal", None, "voltage", runs, None,
-                         note="minimum-time voltages held over the control steps (agents.policies.optimal)")
+                         note="minimum-time voltages held over the control steps (agents.policies.optimal)",
+                         factory=shipped_optimal)
 
     def robust_shield(self) -> None:
         """PD behind the robust shield, where the condition shifts the parameters."""
         if self.condition.params or self.condition.env_kwargs.get("randomize_params"):
             runs = [self.run(f"robust-shield:{ROBUST_RANGES}:pd", robust_shield_pd)]
             self.add(ROBUST_LABEL, "pd", None, "pd", runs, None, note=ROBUST_NOTE, shielded=True,
-                     shield_range=ROBUST_RANGES)
+                     shield_range=ROBUST_RANGES, factory=robust_shield_pd)
 
     def only(self, kinds, heuristics: dict, groups: dict, shielded) -> None:
         """The rows of ``kinds`` (ONLY_ROWS) alone, as the full table computes them."""
@@ -246,6 +272,22 @@ class _ConditionTable:
             result = mpc_episodes(self.condition, self.episodes, self.cache, mode=mode)
             e = self.add(label, "mpc", None, mode, [result], None, note=note)
             e["solve_time"] = result["solve_time"]
+
+    def decision_times(self) -> None:
+        """Every entry's compute per decision ("decision_time"): its policy timed over the
+        condition's first episodes (evaluation.decision_time); the MPC's solve times per control
+        step, which its evaluation kept ("timed": "solve")."""
+        for e in self.entries:
+            if e.get("solve_time"):
+                t = e["solve_time"]
+                e["decision_time"] = {"median": t["median"], "p95": t["p95"], "decisions": t["solves"], "timed": "solve"}
+            elif e["name"] in self.factories:
+                factory, mode = self.factories[e["name"]]
+                e["decision_time"] = {**decision_time(self.condition, factory, mode), "timed": "decision"}
+                if self.verbose:
+                    t = e["decision_time"]
+                    print(f"[{self.condition.name}] {e['name']}: {1e6 * t['median']:.0f} us per decision (median), "
+                          f"95th percentile {1e6 * t['p95']:.0f} us", flush=True)
 
     def time_scores(self) -> None:
         """Every entry's normalized time score (statistics.time_score_fields) against this
@@ -272,7 +314,8 @@ class _ConditionTable:
                 kind = "offline" if "offline" in tags else "learned"
                 e = self.add(label, kind, label, mode, runs, [c["seed"] for c in configs],
                              note=SHIELD_NOTE if shield else "", train_seconds=[training_seconds(c) for c in configs],
-                             shielded=shield or "shielded" in tags, tags=tags, run=algorithm)
+                             shielded=shield or "shielded" in tags, tags=tags, run=algorithm,
+                             factory=partial(load_policy, run_spec(run_dirs[0], shield)))  # its first seed timed
                 if self.reference is not None:
                     p, ci = probability_faster(time_scores(runs), time_scores(self.reference))
                     e["probability_faster_than_heuristic"] = p

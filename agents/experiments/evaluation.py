@@ -11,6 +11,7 @@ import dataclasses
 import hashlib
 import json
 import sys
+import time
 from pathlib import Path
 
 import numpy as np
@@ -176,6 +177,45 @@ def mpc_episodes(condition: Condition, episodes: int | None = None, cache: Path 
     result = cached_evaluation(cache, "mpc", MPC_SOURCES, description, run)
     result["solve_time"] = {**solve_time_summary(result["solve_times"]), "failures": int(result["solver_failures"])}
     return result
+
+
+DECISION_EPISODES = 3
+"""the evaluation episodes of a condition (its first seeds) a policy's compute per decision is timed over"""
+
+
+class _TimedPolicy:
+    """A policy whose every decision's wall time is kept (the call obs -> action, whatever it does:
+    a network's forward pass, a shield's backup check, an MPC's solve)."""
+
+    def __init__(self, policy) -> None:
+        self.policy, self.seconds = policy, []
+
+    def reset(self) -> None:
+        if callable(getattr(self.policy, "reset", None)):
+            self.policy.reset()
+
+    def __call__(self, obs):
+        started = time.perf_counter_ns()
+        action = self.policy(obs)
+        self.seconds.append((time.perf_counter_ns() - started) * 1e-9)
+        return action
+
+
+def decision_time(condition: Condition, policy_factory, mode: str, episodes: int = DECISION_EPISODES) -> dict:
+    """A policy's compute per control step in a condition: the median and 95th percentile [s] of
+    the wall time of each of its decisions over the condition's first ``episodes`` evaluation
+    episodes, on one thread of this machine. Never cached: a property of the machine it is
+    measured on, measured again by each comparison (which says the machine's load)."""
+    timed: list[_TimedPolicy] = []
+
+    def factory(env):
+        timed.append(_TimedPolicy(policy_factory(env)))
+        return timed[-1]
+
+    evaluate_condition(condition, factory, mode, min(episodes, condition.episodes), record=0)
+    seconds = np.array([s for t in timed for s in t.seconds])
+    return {"median": float(np.median(seconds)), "p95": float(np.percentile(seconds, 95)),
+            "decisions": int(seconds.size)}
 
 
 def _to_arrays(result: dict) -> dict[str, np.ndarray]:

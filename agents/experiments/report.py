@@ -7,7 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
-from agents.experiments.evaluation import COLUMNS
+from agents.experiments.evaluation import COLUMNS, DECISION_EPISODES
 from agents.experiments.statistics import interval_estimates, rate_text
 from agents.experiments.targets import target_checks
 from scara_gym import DEFAULT_PARAMS
@@ -212,16 +212,19 @@ def condition_tables(entries: list[dict]) -> str:
     lines = []
     for name in dict.fromkeys(e["condition"] for e in entries):
         description = CONDITIONS[name].description if name in CONDITIONS else name
-        lines += [f"#### {name}: {description}", "",
+        here = [e for e in entries if e["condition"] == name]
+        lines += [f"#### {name}: {description}", "", _caption(here), "",
                   "| policy | kind | mode | seeds | episodes | success | collisions | time to target, IQM [95 % CI] (s) "
-                  "| energy (J) | P(faster than heuristic) |", "|---|---|---|---|---|---|---|---|---|---|"]
-        for e in (e for e in entries if e["condition"] == name):
+                  "| energy (J) | P(faster than heuristic) | decision, median / p95 (us) |",
+                  "|---|---|---|---|---|---|---|---|---|---|---|"]
+        for e in here:
             seeds = "-" if e["seeds"] is None else ",".join(map(str, e["seeds"]))
             p = e.get("probability_faster_than_heuristic")
             p_text = "-" if p is None else f"{p:.2f} [{e['probability_faster_ci'][0]:.2f}, {e['probability_faster_ci'][1]:.2f}]"
             lines.append(f"| {e['name']} | {e['kind']} | {e['control_mode']} | {seeds} | {e['episodes']} | "
                          f"{rate_text(e['success_rate'])} | {rate_text(e['collision_rate'])} | {e['time_iqm']:.4f} "
-                         f"[{e['time_ci'][0]:.4f}, {e['time_ci'][1]:.4f}] | {e['energy_mean']:.1f} | {p_text} |")
+                         f"[{e['time_ci'][0]:.4f}, {e['time_ci'][1]:.4f}] | {e['energy_mean']:.1f} | {p_text} | "
+                         f"{_decision_cell(e)} |")
         for e in (e for e in entries if e["condition"] == name and e.get("solve_time")):
             t = e["solve_time"]
             lines += ["", f"{e['name']}: solve time per control step median {1e3 * t['median']:.1f} ms, 95th percentile "
@@ -238,6 +241,29 @@ def condition_tables(entries: list[dict]) -> str:
                 lines.append(f"- {e['name']}: " + "; ".join(cells))
         lines.append("")
     return "\n".join(lines)
+
+
+def _caption(entries: list[dict]) -> str:
+    """What a condition's table was scored on: the id and the episodes (entries kept before
+    entries named their id say so)."""
+    ids = sorted({e.get("env_id", "an id not recorded") for e in entries})
+    episodes = sorted({e["episodes"] for e in entries})
+    learned = any(e["seeds"] for e in entries)
+    count = " or ".join(map(str, episodes))
+    return (f"Scored on `{'`, `'.join(ids)}`: {count} episode{'s' if episodes != [1] else ''} per policy"
+            + (" and per training seed of a learned policy" if learned else "")
+            + ", on the condition's evaluation seeds."
+            + (f" Decision: the policy's wall time per control step on the machine that ran the comparison, "
+               f"timed over the condition's first {DECISION_EPISODES} episodes (one thread; the MPC's: its "
+               "solver's time per step, over every episode)" if any("decision_time" in e for e in entries) else ""))
+
+
+def _decision_cell(e: dict) -> str:
+    """A row's compute per decision in microseconds (the MPC's: its solve time, marked so)."""
+    t = e.get("decision_time")
+    if t is None:
+        return "-"
+    return f"{1e6 * t['median']:,.0f} / {1e6 * t['p95']:,.0f}" + (" (solve)" if t.get("timed") == "solve" else "")
 
 
 def _interval_cell(point: float, interval, digits: int = 3) -> str:

@@ -88,6 +88,10 @@ def test_comparison_command_writes_every_policy(tmp_path):
     for e in entries:  # the C11 condition is one episode, whatever --episodes says
         assert KEYS <= set(e) and e["condition"] == "c11" and e["episodes"] == 1
         assert e["time_ci"][0] <= e["time_iqm"] <= e["time_ci"][1]
+        assert e["env_id"] == LATEST_ENV_ID  # every entry names the id it was scored on
+        t = e["decision_time"]  # every row's compute per decision: the MPC's its solves', the others timed
+        assert 0.0 < t["median"] <= t["p95"] and t["timed"] == ("solve" if e["kind"] == "mpc" else "decision")
+        assert t["decisions"] > 0  # the episode's control steps (PD's ends at its collision)
     pd, optimal, td3 = entries[0], entries[names.index("optimal")], entries[names.index("td3")]
     assert pd["collision_rate"] == 1.0 and pd["time_iqm"] == statistics.TIME_LIMIT
     assert optimal["success_rate"] == 1.0 and optimal["collision_rate"] == 0.0 and optimal["time_iqm"] < 1.25
@@ -106,6 +110,8 @@ def test_comparison_command_writes_every_policy(tmp_path):
         mpc = entries[names.index(name)]
         assert mpc["success_rate"] == 1.0 and mpc["collision_rate"] == 0.0 and mpc["solve_time"]["solves"] > 100
     assert table.startswith("#### Targets") and "| optimal reference on the C11 target" in table
+    assert f"Scored on `{LATEST_ENV_ID}`: 1 episode per policy and per training seed of a learned policy" in table
+    assert "| decision, median / p95 (us) |" in table and " (solve) |" in table
     assert "| policy | c11 |\n" in table and "| pd | - (0.00 / 1.00) |\n" in table  # the overview
     assert f"| optimal | {optimal['time_iqm']:.3f} s |\n" in table
     json.dumps(entries)  # the JSON other tools read
@@ -119,6 +125,31 @@ def test_comparison_command_writes_every_policy(tmp_path):
     assert "torch-ppo-residual-frugal" not in names and "torch-ppo" in names
     names = [e["name"] for e in comparison.compare(published, ["c11"], pilots=True, **kwargs)[0]]
     assert "torch-ppo-residual-frugal" in names
+
+
+def test_decision_time_is_the_wall_time_of_each_call_of_the_policy():
+    """A policy that waits 2 ms per decision is timed at 2 ms or more at the median and the 95th
+    percentile, once per control step of the condition's first episodes; PD is far faster."""
+    import time
+
+    from agents.policies import PDPolicy
+
+    calls = []
+
+    def slow_pd(env):
+        pd = PDPolicy(env)
+
+        def act(obs):
+            calls.append(1)
+            time.sleep(0.002)
+            return pd(obs)
+        return act
+
+    condition = CONDITIONS["c11-starts"]
+    slow = evaluation.decision_time(condition, slow_pd, "pd", episodes=2)
+    assert slow["decisions"] == len(calls) > 10 and 0.002 <= slow["median"] <= slow["p95"]
+    fast = evaluation.decision_time(condition, PDPolicy, "pd", episodes=2)
+    assert fast["decisions"] == slow["decisions"] and fast["median"] < slow["median"] / 4
 
 
 def test_a_condition_without_a_shipped_optimal_solution_is_compared_without_it(monkeypatch, capsys):
@@ -268,7 +299,11 @@ def test_conditions_compared_in_parallel_give_the_sequential_entries():
     kwargs = dict(episodes=2, verbose=False, heuristics=HEURISTICS, include_optimal=False, include_mpc=False)
     sequential, _ = comparison.compare(None, ["c11", "wall-closer"], **kwargs)
     parallel, traces = comparison.compare_in_parallel(None, ["c11", "wall-closer"], 2, **kwargs)
-    assert parallel == sequential and set(traces) == {"c11", "wall-closer"}
+
+    def untimed(entries):  # wall times differ from run to run; every other figure is the same
+        assert all(e.pop("decision_time")["decisions"] > 0 for e in entries)
+        return entries
+    assert untimed(parallel) == untimed(sequential) and set(traces) == {"c11", "wall-closer"}
 
 
 def test_the_corners_condition_is_scored_like_random_shifts_with_the_robust_shield_among_the_rows():
@@ -353,7 +388,9 @@ def test_the_readme_headline_table_is_the_published_comparisons_overview():
 
 
 def test_the_classical_rows_come_back_from_the_cache(tmp_path, monkeypatch):
-    kwargs = dict(episodes=2, verbose=False, heuristics=HEURISTICS, include_mpc=False, cache=tmp_path)
+    # the decision times are timed afresh on purpose (never cached): left out here
+    kwargs = dict(episodes=2, verbose=False, heuristics=HEURISTICS, include_mpc=False, cache=tmp_path,
+                  decision_times=False)
     first, _ = comparison.compare(None, ["c11-starts"], **kwargs)
     assert len(list(tmp_path.glob("classical-*.npz"))) == len(first) == 6  # pd, pd + shield, 4 heuristics
 
