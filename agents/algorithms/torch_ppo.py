@@ -311,6 +311,8 @@ def _train(config: Config, resume: bool, hooks: list[Hook] | None) -> dict:
         if config.anneal_lr:
             learner.optimizer.lr = config.learning_rate * (1.0 - (update - 1.0) / num_updates)
         collect(rollout, learner, envs, mapping, hooks, config)
+        for hook in hooks:
+            hook.on_rollout_end()
         advantages, returns = gae(learner.agent, rollout, config)
         losses = ppo_update(learner, rollout, advantages, returns, hooks, update, config)
         elapsed = learner.train_seconds + time.perf_counter() - started
@@ -319,7 +321,8 @@ def _train(config: Config, resume: bool, hooks: list[Hook] | None) -> dict:
             save(learner.agent, out)
             save_torch({"agent": learner.agent.state_dict(), "optimizer": learner.optimizer.state_dict(),
                         "return_rms": learner.return_rms.state_dict(), "update": update,
-                        "global_step": learner.global_step, "train_seconds": elapsed}, out / "checkpoint.pt")
+                        "global_step": learner.global_step, "train_seconds": elapsed,
+                        "hooks": [hook.state_dict() for hook in hooks]}, out / "checkpoint.pt")
         # the last 100 episodes' return and success, at most every 10 s and at the end
         progress.report(learner.global_step, rollout.finished["return"][-100:], rollout.finished["success"][-100:],
                         final=update == num_updates)
@@ -356,6 +359,8 @@ def _start(config: Config, envs, device, hooks: list[Hook], resume: bool) -> Lea
         learner.return_rms.load_state_dict(state["return_rms"])
         learner.start_update = state["update"] + 1
         learner.global_step, learner.train_seconds = state["global_step"], state["train_seconds"]
+        for hook, kept in zip(hooks, state.get("hooks", [])):  # checkpoints before hooks kept state: none
+            hook.load_state_dict(kept)
     elif config.init_from:
         load_weights(learner.agent, Path(config.init_from))
     if learner.start_update == 1 and not config.init_from:
@@ -409,18 +414,21 @@ def collect(rollout: Rollout, learner: Learner, envs, mapping, hooks: list[Hook]
             hook.on_step(env_action, next_obs, reward, terminated, truncated, info)
         reward = tensor(reward, device)
         terminated, truncated = tensor(terminated, device), tensor(truncated, device)
-        rollout.rewards[step] = _scaled_reward(rollout, learner, reward, terminated, truncated, info, config)
+        rollout.rewards[step] = _scaled_reward(rollout, learner, reward, terminated, truncated, info, hooks, config)
         ended = terminated | truncated
         if bool(ended.any()):
             next_obs = _episodes_end(rollout, ended, next_obs, info, hooks)
         rollout.obs, rollout.done = tensor(next_obs, device), ended.to(torch.float32)
 
 
-def _scaled_reward(rollout: Rollout, learner: Learner, reward, terminated, truncated, info, config: Config):
+def _scaled_reward(rollout: Rollout, learner: Learner, reward, terminated, truncated, info, hooks: list[Hook],
+                   config: Config):
     """A step's reward as PPO learns it: summed into the episodes' returns, scaled by the running
     std of the discounted return (normalize_reward), and a time limit bootstrapped with the value
     of the final observation."""
     rollout.episode_return += reward
+    for hook in hooks:  # the objective's changes (a cost's penalty); the logged return is the env's
+        reward = hook.shape_reward(reward, info)
     if config.normalize_reward:
         rollout.discounted = rollout.discounted * config.gamma + reward  # zeroed where an episode ends
         learner.return_rms.update(rollout.discounted)

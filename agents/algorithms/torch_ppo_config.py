@@ -67,6 +67,9 @@ class Config:
     demo_bc: float = 0.0           # weight of the behaviour-cloning term on the optimal reference's steps
     demo_bc_decay: float = 1.0     # that weight's factor per update (DAPG's decay)
     demo_bc_pretrain: int = 0      # Adam steps on the cloning term alone before the first rollout
+    cost_limit: float | None = None  # PPO-Lagrangian: the episode cost (info["cost"]) allowed; None: off
+    lagrange_lr: float = 0.05      # its multiplier's step per rollout per unit of excess episode cost
+    lagrange_init: float = 0.0     # its multiplier's start
     out: str = "runs/torch_ppo"
 
     def __post_init__(self) -> None:
@@ -99,8 +102,11 @@ class Config:
                 ("max_grad_norm", 0.0, INF, True), ("clip_obs", 0.0, INF, True), ("init_log_std", -20.0, 5.0, False),
                 ("sensor_noise", 0.0, 1e3, False), ("residual_deadzone", 0.0, 1.0, False),
                 ("demo_resets", 0.0, 1.0, False), ("demo_wall_margin", 0.0, 0.05, False),
-                ("target_replay", 0.0, 1.0, False), ("demo_bc", 0.0, INF, False), ("demo_bc_decay", 0.0, 1.0, True)):
+                ("target_replay", 0.0, 1.0, False), ("demo_bc", 0.0, INF, False), ("demo_bc_decay", 0.0, 1.0, True),
+                ("lagrange_lr", 0.0, 1e3, True), ("lagrange_init", 0.0, 1e6, False)):
             checks.real(name, getattr(self, name), low, high, low_open=low_open)
+        if self.cost_limit is not None:
+            checks.real("cost_limit", self.cost_limit, 0.0, 1e6)
         if not isinstance(self.out, str) or not self.out:
             raise UserError(f"out must be a folder path, got {self.out!r}")
 

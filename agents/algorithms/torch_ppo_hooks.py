@@ -8,7 +8,8 @@ environment, the minibatch gradient) and knows nothing of what they do. `hooks_f
 - ``demo_resets``: reference state initialization on the optimal reference's path (DemoResets);
 - ``demo_bc``: behaviour cloning of the optimal reference's steps, DAPG (DemoCloning);
 - ``target_replay``: failed-target replay for drawn targets (TargetReplay);
-- ``shield``: shielded RL behind `scara_gym.wrappers.Shield` (ShieldedActions).
+- ``shield``: shielded RL behind `scara_gym.wrappers.Shield` (ShieldedActions);
+- ``cost_limit``: PPO-Lagrangian on the collision cost ``info["cost"]`` (Lagrangian).
 """
 
 from __future__ import annotations
@@ -50,12 +51,27 @@ class Hook:
         the unwrapped vector env."""
         return env_actions
 
+    def shape_reward(self, reward, info: dict):
+        """The reward PPO learns from (a tensor, one per robot), from the environment's; the
+        episodes' logged returns stay the environment's."""
+        return reward
+
+    def on_rollout_end(self) -> None:
+        """After each rollout, before its advantages."""
+
     def loss_gradients(self, agent, update: int) -> dict | None:
         """{parameter name: gradient} to add to PPO's on each minibatch of ``update``, or None."""
         return None
 
     def log(self, writer, global_step: int, samples: int) -> None:
         """Scalars for TensorBoard after an update of ``samples`` environment steps."""
+
+    def state_dict(self) -> dict:
+        """What a checkpoint keeps of the hook (numbers and lists only), so that a resumed run goes on from it."""
+        return {}
+
+    def load_state_dict(self, state: dict) -> None:
+        """Continue from a checkpoint's ``state_dict()``."""
 
 
 class DemoResets(Hook):
@@ -227,6 +243,56 @@ class ShieldedActions(Hook):
         self.interventions = 0
 
 
+class Lagrangian(Hook):
+    """PPO-Lagrangian on the collision cost: PPO maximizes the reward minus lambda x the step's
+    cost (``info["cost"]``: 1 for a step that collided), and lambda follows projected dual ascent
+    on the constraint "mean episode cost <= cost_limit": after each rollout,
+    lambda <- max(0, lambda + lagrange_lr x (mean cost of the episodes that ended in it - cost_limit)).
+    This is the penalty form of the Lagrangian relaxation (RCPO, Tessler et al. 2019: one critic
+    on the penalized return, the multiplier on a slower timescale); the "PPO-Lagrangian" of Ray et
+    al. 2019 weighs a separate cost critic's advantages instead. With cost_limit 0 the multiplier
+    rises while any training episode collides and never falls. The multiplier is kept in the
+    checkpoint; the logs show it and the episode cost."""
+
+    def __init__(self, config: Config) -> None:
+        if config.cost_limit is None:
+            raise ValueError("Lagrangian: cost_limit must be set (the episode cost allowed, e.g. 0)")
+        self.limit, self.step_size = float(config.cost_limit), float(config.lagrange_lr)
+        self.multiplier = float(config.lagrange_init)
+        self.episode_cost: np.ndarray | None = None
+        self.cost: np.ndarray | None = None  # the last step's, per robot
+        self.finished: list[float] = []  # the episode costs of this rollout
+        self.mean_cost = float("nan")  # of the last rollout's finished episodes
+
+    def on_step(self, env_actions, next_obs, reward, terminated, truncated, info) -> None:
+        self.cost = np.asarray(info["cost"], dtype=np.float64)
+        self.episode_cost = self.cost.copy() if self.episode_cost is None else self.episode_cost + self.cost
+        ended = np.asarray(terminated) | np.asarray(truncated)
+        if ended.any():
+            self.finished += self.episode_cost[ended].tolist()
+            self.episode_cost[ended] = 0.0
+
+    def shape_reward(self, reward, info: dict):
+        cost = torch.as_tensor(self.cost, dtype=reward.dtype, device=reward.device)
+        return reward - self.multiplier * cost
+
+    def on_rollout_end(self) -> None:
+        if self.finished:  # a rollout where no episode ended leaves the multiplier as it is
+            self.mean_cost = float(np.mean(self.finished))
+            self.multiplier = max(0.0, self.multiplier + self.step_size * (self.mean_cost - self.limit))
+            self.finished = []
+
+    def log(self, writer, global_step: int, samples: int) -> None:
+        writer.add_scalar("charts/lagrange_multiplier", self.multiplier, global_step)
+        writer.add_scalar("charts/episode_cost", self.mean_cost, global_step)
+
+    def state_dict(self) -> dict:
+        return {"multiplier": self.multiplier}
+
+    def load_state_dict(self, state: dict) -> None:
+        self.multiplier = float(state["multiplier"])
+
+
 def hooks_for(config: Config, envs, mapping) -> list[Hook]:
     """The hooks that ``config``'s add-on fields ask for, in the order the loop calls them."""
     hooks: list[Hook] = []
@@ -238,4 +304,6 @@ def hooks_for(config: Config, envs, mapping) -> list[Hook]:
         hooks.append(TargetReplay(envs, config))
     if config.shield:
         hooks.append(ShieldedActions(config))
+    if config.cost_limit is not None:
+        hooks.append(Lagrangian(config))
     return hooks

@@ -31,6 +31,8 @@ TAGS = {
     "offline": "learns from an offline dataset (agents.experiments.datasets) without acting in the env: its own kind",
     "learning-curve": "trained to a large budget with checkpoints along the way: scara-agents learning-curve scores them",
     "pilot": "a pilot, not a baseline: trained and logged (docs/experiments.md), left out of the comparison's tables",
+    "constrained": "PPO-Lagrangian: the episode's collision cost held to cost_limit by a multiplier learned beside "
+                   "the policy (agents.algorithms.torch_ppo_hooks.Lagrangian)",
 }
 """every tag a run may carry, and what it says"""
 
@@ -121,6 +123,9 @@ RUNS = _runs(
             tags=frozenset({"pilot", "engineered", "residual", "energy-aware"})),
     RunSpec("torch-ppo", "torch-ppo", "the single-file PPO with its defaults (1M steps, the env's reward)",
             tags=frozenset({"standard"})),
+    RunSpec("torch-ppo-lagrangian", "torch-ppo", "the single-file PPO with its defaults, constrained: "
+            "PPO-Lagrangian on the collision cost, at most 0 per episode",
+            fields={"cost_limit": 0.0}, tags=frozenset({"standard", "constrained"})),
     RunSpec("torch-ppo-dr", "torch-ppo", "the single-file PPO with physics and wall drawn per episode, 3M steps",
             fields={"randomize_params": "all", "total_timesteps": 3_000_000},
             tags=frozenset({"standard", "domain-randomized"})),

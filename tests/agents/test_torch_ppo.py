@@ -21,7 +21,7 @@ from agents.algorithms.torch_ppo import (
     train,
 )
 from agents.algorithms.torch_ppo_config import parse_reward_weights
-from agents.algorithms.torch_ppo_hooks import DemoCloning, DemoResets, ShieldedActions, TargetReplay
+from agents.algorithms.torch_ppo_hooks import DemoCloning, DemoResets, Lagrangian, ShieldedActions, TargetReplay
 from agents.cli import run
 from agents.experiments.evaluation import make_policy
 from agents.policies import run_episode
@@ -296,6 +296,48 @@ def test_a_shielded_run_applies_the_shields_actions_and_acts_behind_it_in_evalua
     assert result["collisions"] == 0
     with pytest.raises(ValueError, match="shield: the shield's model runs on the CPU"):
         ShieldedActions(Config(shield=True, device="cuda"))
+
+
+def test_the_lagrangian_penalizes_the_cost_and_follows_dual_ascent_on_the_episode_cost():
+    """lambda x cost comes off each step's reward; after a rollout, lambda moves by lagrange_lr x
+    (mean cost of the episodes that ended - cost_limit) and never below 0."""
+    hook = Lagrangian(Config(cost_limit=0.5, lagrange_lr=0.1, lagrange_init=0.2))
+    no, yes = np.array([False, False]), np.array([True, False])
+    hook.on_step(None, None, None, no, no, {"cost": np.array([1.0, 0.0])})
+    assert torch.equal(hook.shape_reward(torch.tensor([1.0, 1.0], dtype=torch.float64), {}),
+                       torch.tensor([0.8, 1.0], dtype=torch.float64))
+    hook.on_step(None, None, None, yes, no, {"cost": np.array([1.0, 1.0])})  # robot 0's episode: cost 2
+    hook.on_step(None, None, None, no, yes[::-1], {"cost": np.array([0.0, 0.0])})  # robot 1's: cost 1
+    hook.on_rollout_end()
+    assert hook.mean_cost == 1.5 and hook.multiplier == pytest.approx(0.2 + 0.1 * (1.5 - 0.5))
+    hook.on_rollout_end()  # no episode ended since: lambda stays
+    assert hook.multiplier == pytest.approx(0.3)
+    for _ in range(10):  # robot 0's next episodes cost nothing: lambda falls by 0.05 each, to 0, not below
+        hook.on_step(None, None, None, yes, no, {"cost": np.array([0.0, 0.0])})
+        hook.on_rollout_end()
+    assert hook.multiplier == 0.0 and hook.episode_cost[0] == 0.0 and hook.episode_cost[1] == 0.0
+    with pytest.raises(ValueError, match="cost_limit"):
+        Config(cost_limit=-1.0)
+
+
+def test_a_lagrangian_run_keeps_its_multiplier_in_the_checkpoint_and_resumes_from_it(tmp_path):
+    out = tmp_path / "run"
+    config = Config(num_envs=4, num_steps=16, num_minibatches=2, update_epochs=1, total_timesteps=128,
+                    checkpoint_every=1, cost_limit=0.0, lagrange_init=0.3, out=str(out))
+    first = Lagrangian(config)
+    train(config, hooks=[first])
+    assert first.multiplier >= 0.3  # with cost_limit 0 it never falls
+    kept = torch.load(out / "checkpoint.pt", weights_only=True)["hooks"]
+    assert kept == [{"multiplier": first.multiplier}]
+    loaded = []
+
+    class Recorded(Lagrangian):
+        def load_state_dict(self, state: dict) -> None:
+            loaded.append(state["multiplier"])
+            super().load_state_dict(state)
+
+    train(dataclasses.replace(config, total_timesteps=192), resume=True, hooks=[Recorded(config)])
+    assert loaded == [first.multiplier]
 
 
 def test_the_residual_maps_inverse_replays_the_optimal_reference():
