@@ -37,6 +37,7 @@ from functools import partial
 from pathlib import Path
 
 from agents.algorithms.loaders import load_policy, run_spec
+from agents.experiments.entries import Entry, shield_added
 from agents.experiments.evaluation import (
     cached_evaluation,
     condition_description,
@@ -47,7 +48,7 @@ from agents.experiments.evaluation import (
 )
 from agents.experiments.registry import RUNS, tagged
 from agents.experiments.statistics import (
-    entry,
+    figures,
     probability_faster,
     rate_text,
     time_score_fields,
@@ -157,7 +158,7 @@ def compare(runs_root: Path | None = Path("runs/baselines"), conditions: list[st
             table.time_scores()
         if decision_times:
             table.decision_times()
-        entries += table.entries
+        entries += [e.record() for e in table.entries]
         traces[name] = table.traces
         if verbose:
             print(f"[{name}] {time.perf_counter() - started:.0f} s", flush=True)
@@ -178,27 +179,35 @@ class _ConditionTable:
     def __init__(self, condition, episodes: int | None, verbose: bool, cache=None) -> None:
         self.condition, self.verbose, self.cache = condition, verbose, cache
         self.episodes = 1 if condition.episodes == 1 else episodes  # the C11 episode is one episode
-        self.entries: list[dict] = []
+        self.entries: list[Entry] = []
         self.runs: list[list[dict]] = []  # each entry's per-episode arrays, for the normalized time score
         self.traces: dict = {}
         self.reference = None  # the heuristic learned agents are compared with: dec-continue at its tuned distance
         self.factories: dict[str, tuple] = {}  # label -> (policy factory, control mode): its decisions timed
 
     def add(self, label, kind, algorithm, mode, runs, seeds, note="", train_seconds=None, shielded=False, tags=(),
-            run=None, shield_range=None, factory=None) -> dict:
-        e = {**entry(label, kind, algorithm, mode, self.condition.name, runs, seeds, note, train_seconds),
-             "env_id": ENV_ID, "shielded": shielded, "shield_range": shield_range or ("nominal" if shielded else None), "run": run,
-             "tags": sorted(tags)}
+            run=None, shield_range=None, factory=None, variant=None, setting=None) -> Entry:
+        e = Entry(label, kind, algorithm, mode, self.condition.name, ENV_ID, None if seeds is None else tuple(seeds),
+                  variant=variant, setting=setting, shielded=shielded,
+                  shield_range=shield_range or ("nominal" if shielded else None), run=run, tags=tuple(sorted(tags)),
+                  note=note, figures=figures(runs, seeds, train_seconds))
         self.entries.append(e)
         self.runs.append(runs)
         self.traces[label] = runs[0]["trace"]
         if factory is not None:
             self.factories[label] = (factory, mode)
         if self.verbose:
-            print(f"[{self.condition.name}] {label}: success {rate_text(e['success_rate'])}, collisions "
-                  f"{rate_text(e['collision_rate'])}, time IQM {e['time_iqm']:.4f} s {e['time_ci']}, "
-                  f"energy {e['energy_mean']:.1f} J", flush=True)
+            f = e.figures
+            print(f"[{self.condition.name}] {label}: success {rate_text(f['success_rate'])}, collisions "
+                  f"{rate_text(f['collision_rate'])}, time IQM {f['time_iqm']:.4f} s {f['time_ci']}, "
+                  f"energy {f['energy_mean']:.1f} J", flush=True)
         return e
+
+    def update(self, e: Entry, **more) -> Entry:
+        """Figures added to an entry of the table (it is frozen: replaced by its copy)."""
+        updated = e.with_figures(**more)
+        self.entries[self.entries.index(e)] = updated
+        return updated
 
     def run(self, key: str, factory, mode: str = "pd") -> dict:
         """A classical policy's episodes, from the cache where it keeps them (key: what names
@@ -230,6 +239,7 @@ class _ConditionTable:
                 if variant == "continue" and label == "tuned":
                     self.reference = runs
                 self.add(f"dec-{variant}, {label} (d={distance:.4f} m)", "heuristic", None, "pd", runs, None,
+                         variant=variant, setting=label,
                          note=f"trigger distance {distance:.4f} m, tuned once on the tuning set "
                               f"(agents.experiments.tuning: {tuned['distance']:.4f} m)", factory=heuristic)
         if include_optimal and self.condition.name in OPTIMAL_CONDITIONS:
@@ -270,37 +280,39 @@ class _ConditionTable:
         """The nonlinear MPC with its nominal model in both control modes, and its solve times."""
         for label, mode, note in MPC_ROWS:
             result = mpc_episodes(self.condition, self.episodes, self.cache, mode=mode)
-            e = self.add(label, "mpc", None, mode, [result], None, note=note)
-            e["solve_time"] = result["solve_time"]
+            self.update(self.add(label, "mpc", None, mode, [result], None, note=note), solve_time=result["solve_time"])
 
     def decision_times(self) -> None:
         """Every entry's compute per decision ("decision_time"): its policy timed over the
         condition's first episodes (evaluation.decision_time); the MPC's solve times per control
         step, which its evaluation kept ("timed": "solve")."""
-        for e in self.entries:
-            if e.get("solve_time"):
-                t = e["solve_time"]
-                e["decision_time"] = {"median": t["median"], "p95": t["p95"], "decisions": t["solves"], "timed": "solve"}
-            elif e["name"] in self.factories:
-                factory, mode = self.factories[e["name"]]
-                e["decision_time"] = {**decision_time(self.condition, factory, mode), "timed": "decision"}
+        for e in list(self.entries):
+            if e.figures.get("solve_time"):
+                t = e.figures["solve_time"]
+                self.update(e, decision_time={"median": t["median"], "p95": t["p95"], "decisions": t["solves"],
+                                              "timed": "solve"})
+            elif e.name in self.factories:
+                factory, mode = self.factories[e.name]
+                t = {**decision_time(self.condition, factory, mode), "timed": "decision"}
+                self.update(e, decision_time=t)
                 if self.verbose:
-                    t = e["decision_time"]
-                    print(f"[{self.condition.name}] {e['name']}: {1e6 * t['median']:.0f} us per decision (median), "
+                    print(f"[{self.condition.name}] {e.name}: {1e6 * t['median']:.0f} us per decision (median), "
                           f"95th percentile {1e6 * t['p95']:.0f} us", flush=True)
 
     def time_scores(self) -> None:
         """Every entry's normalized time score (statistics.time_score_fields) against this
         condition's "pd + shield" (0) and time_score_reference's entry (1); none without both."""
-        found = time_score_reference([e["name"] for e in self.entries])
+        found = time_score_reference([e.record() for e in self.entries])
         if found is None:
             return
-        zero, one = (self.runs[[e["name"] for e in self.entries].index(label)] for label in found)
-        for e, runs in zip(self.entries, self.runs):
-            fields = time_score_fields(runs, zero, one, found[1], e["seeds"])
-            for item, score in zip(e.get("per_seed", []), fields.pop("per_seed_scores", [])):
-                item["time_score_mean"] = score
-            e.update(fields)
+        zero, one = (self.runs[[e.name for e in self.entries].index(label)] for label in found)
+        for e, runs in zip(list(self.entries), self.runs):
+            fields = time_score_fields(runs, zero, one, found[1], e.seeds)
+            scores = fields.pop("per_seed_scores", [])
+            if "per_seed" in e.figures:
+                fields["per_seed"] = [{**item, "time_score_mean": score}
+                                      for item, score in zip(e.figures["per_seed"], scores)]
+            self.update(e, **fields)
 
     def learned(self, groups: dict, cache, shielded, shields=(False, True)) -> None:
         """Every learned run's seeds (and behind the shield where ``shielded`` names it); shields:
@@ -318,31 +330,26 @@ class _ConditionTable:
                              factory=partial(load_policy, run_spec(run_dirs[0], shield)))  # its first seed timed
                 if self.reference is not None:
                     p, ci = probability_faster(time_scores(runs), time_scores(self.reference))
-                    e["probability_faster_than_heuristic"] = p
-                    e["probability_faster_ci"] = ci
+                    self.update(e, probability_faster_than_heuristic=p, probability_faster_ci=ci)
 
 
-TIME_SCORE_REFERENCES = ("optimal", "mpc")
-"""the entries that score 1 in the normalized time score, the first present (the optimal replay, else the MPC
-in "voltage" mode)"""
-
-
-def time_score_reference(labels) -> tuple[str, str] | None:
+def time_score_reference(records) -> tuple[str, str] | None:
     """(the entry scoring 0, the entry scoring 1) of the normalized time score among a condition's
-    entry ``labels``: "pd + shield" and the first of TIME_SCORE_REFERENCES present; None where
-    either is missing."""
-    zero = "pd" + SHIELD_SUFFIX
-    one = next((label for label in TIME_SCORE_REFERENCES if label in labels), None)
-    return None if zero not in labels or one is None else (zero, one)
+    entry ``records``, by their names: "pd + shield" (PD behind the nominal shield) and the optimal
+    replay, else the MPC in "voltage" mode; None where either is missing."""
+    zero = [e for e in records if e["kind"] == "pd" and e.get("shield_range") == "nominal"]
+    one = ([e for e in records if e["kind"] == "optimal"]
+           or [e for e in records if e["kind"] == "mpc" and e["control_mode"] == "voltage"])
+    return (zero[0]["name"], one[0]["name"]) if zero and one else None
 
 
 ONLY_ROWS = {
     "mpc": lambda e: e["kind"] == "mpc",
-    "robust-shield": lambda e: e["name"] == ROBUST_LABEL,
-    "learned-shielded": lambda e: e["kind"] in ("learned", "offline") and e["name"].endswith(SHIELD_SUFFIX),
+    "robust-shield": lambda e: e["kind"] == "pd" and e.get("shield_range") == ROBUST_RANGES,
+    "learned-shielded": shield_added,
 }
 """the kinds of row ``compare --only`` evaluates alone (after a change to that policy alone, so as
-not to re-evaluate every learned run): which entries they are"""
+not to re-evaluate every learned run): which entries (records) they are"""
 
 
 def merge_entries(published: list[dict], fresh: list[dict], kinds) -> list[dict]:
@@ -369,8 +376,8 @@ def merge_entries(published: list[dict], fresh: list[dict], kinds) -> list[dict]
         if (entry_["condition"], entry_["name"]) in at_old:
             continue
         names = [i for i, e in enumerate(policies) if e["condition"] == entry_["condition"]]
-        twin_name = entry_["name"][:-len(SHIELD_SUFFIX)] if entry_["name"].endswith(SHIELD_SUFFIX) else None
-        twin = [i for i in names if policies[i]["name"] == twin_name]
+        twin = [i for i in names if shield_added(entry_) and not shield_added(policies[i])
+                and policies[i].get("run") == entry_.get("run") and policies[i]["control_mode"] == entry_["control_mode"]]
         kind = [i for i in names if picked(policies[i]) or policies[i]["kind"] == entry_["kind"]]
         where = twin or kind or names
         policies.insert(where[-1] + 1 if where else len(policies), entry_)

@@ -7,6 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
+from agents.experiments.entries import row_of
 from agents.experiments.evaluation import COLUMNS, DECISION_EPISODES
 from agents.experiments.statistics import interval_estimates, rate_text
 from agents.experiments.targets import target_checks
@@ -192,10 +193,10 @@ def overview(entries: list[dict], conditions: tuple[str, ...] | None = None) -> 
     conditions = list(conditions or dict.fromkeys(e["condition"] for e in entries))
     lines = ["#### Overview: time to target, IQM (success rate / collision rate where not 1 / 0)", "",
              "| policy | " + " | ".join(conditions) + " |", "|---|" + "---|" * len(conditions)]
-    for name in dict.fromkeys(e["name"].split(" (d=")[0] for e in entries if e["condition"] in conditions):
+    for name in dict.fromkeys(row_of(e) for e in entries if e["condition"] in conditions):
         cells = []
         for condition in conditions:
-            found = [e for e in entries if e["condition"] == condition and e["name"].split(" (d=")[0] == name]
+            found = [e for e in entries if e["condition"] == condition and row_of(e) == name]
             if not found:
                 cells.append("n/a")
                 continue

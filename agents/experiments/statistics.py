@@ -15,7 +15,9 @@ import warnings
 
 import numpy as np
 
+from agents.experiments.entries import Entry
 from scara_gym.benchmark.episodes import BANDS, band_keys
+from scara_gym.benchmark.protocol import ENV_ID
 from scara_gym.extras import require
 
 TIME_LIMIT = 3.0  # s, the registered episode limit: the time of an episode that never arrives
@@ -110,16 +112,25 @@ def training_seconds(config: dict) -> float | None:
 
 
 def entry(name: str, kind: str, algorithm: str | None, mode: str, condition: str, runs: list[dict],
-          seeds: list[int] | None, note: str = "", train_seconds: list[float] | None = None) -> dict:
+          seeds: list[int] | None, note: str = "", train_seconds: list[float] | None = None,
+          env_id: str = ENV_ID) -> dict:
+    """The record of a row without a heuristic's or a shield's fields (Entry.record), from its runs' episodes."""
+    return Entry(name, kind, algorithm, mode, condition, env_id, None if seeds is None else tuple(seeds), note=note,
+                 figures=figures(runs, seeds, train_seconds)).record()
+
+
+def figures(runs: list[dict], seeds: list[int] | None, train_seconds: list[float] | None = None) -> dict:
+    """An entry's numbers from its runs' per-episode arrays (one run per seed, or one): success,
+    collisions, time (IQM with its 95 % CI, rliable), energy and return, at each band, and with
+    ``seeds`` every seed's own ("per_seed", with its training time where given)."""
     success = np.concatenate([r["success"] for r in runs])
     time_iqm, time_ci = iqm_with_ci(time_scores(runs))
-    row = {"name": name, "kind": kind, "algorithm": algorithm, "control_mode": mode, "condition": condition,
-           "seeds": seeds, "episodes": int(len(runs[0]["success"])),
+    row = {"episodes": int(len(runs[0]["success"])),
            "success_rate": float(success.mean()),
            "collision_rate": float(np.concatenate([r["collisions"] for r in runs]).mean()),
            "time_iqm": time_iqm, "time_ci": time_ci,
            "energy_mean": float(np.mean([r["energy"].mean() for r in runs])),
-           "return_mean": float(np.mean([r["return"].mean() for r in runs])), "note": note}
+           "return_mean": float(np.mean([r["return"].mean() for r in runs]))}
     for band in BANDS:  # the looser bands (module docstring)
         reached, times = band_keys(band)
         row[f"success_rate_{band}"] = float(np.concatenate([r[reached] for r in runs]).mean())

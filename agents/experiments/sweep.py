@@ -219,11 +219,11 @@ def run_sweep(algo: str, env_id: str, control_mode: str, seeds: list[int], grid:
         own = ", ".join(f"{k}={v}" for k, v in task.items())
         name = f"{algo} {tag(point)}" + (f" ({own}: its own task)" if task else "")
         entries.append({**entry(name, "learned", algo, control_mode, condition, runs, seeds_done, note=note,
-                                train_seconds=seconds), "hyperparameters": point, "task": task})
+                                train_seconds=seconds, env_id=env_id), "hyperparameters": point, "task": task})
         if task:
             entries.append({**entry(f"{algo} {tag(point)} (the benchmark's task)", "learned", algo, control_mode,
                                     condition, benchmark, seeds_done, note=f"trained with {own}",
-                                    train_seconds=seconds), "hyperparameters": point, "task": {}})
+                                    train_seconds=seconds, env_id=env_id), "hyperparameters": point, "task": {}})
     (out / "sweep.json").write_text(json.dumps({"algo": algo, "env_id": env_id, "grid": grid, "seeds": seeds,
                                                "condition": condition, "policies": entries, "failed": failed},
                                                indent=2))

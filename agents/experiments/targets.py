@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from agents.experiments.entries import is_heuristic
 from agents.experiments.statistics import rate_text
 
 MINIMUM_TIME_BOUND = 1.2217
@@ -131,7 +132,7 @@ def target_checks(entries: list[dict]) -> list[dict]:
         check(text, None, "not evaluated")
     for condition, success, label in (("c11-starts", 0.99, "the C11 target from perturbed starts"),
                                       ("random-targets", 0.99, "randomized targets")):
-        heuristic = [e for e in _find(entries, condition, "heuristic") if e["name"].startswith("dec-continue, tuned")]
+        heuristic = [e for e in _find(entries, condition, "heuristic") if is_heuristic(e, "continue", "tuned")]
         learned = [e for e in _find(entries, condition, "learned") if not e.get("shielded")]
         best = _best_learned(learned, success)
         text = (f"best learned without a shield, {label}: >= {100 * success:.0f} % success, 0 collisions, IQM time "

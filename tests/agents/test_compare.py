@@ -202,7 +202,8 @@ def test_target_checks_say_met_or_the_number_reached():
     entries = [_entry("c11", "optimal", time=1.2241, energy=43.0),
                _entry("c11", "learned", "sac", time=1.20, energy=500.0, seeds=[0, 1], train_seconds=2000)]
     for condition in ("c11-starts", "random-targets"):
-        entries += [{**_entry(condition, "heuristic", time=1.60, energy=70.0), "name": "dec-continue, tuned (d=0.07 m)"},
+        entries += [{**_entry(condition, "heuristic", time=1.60, energy=70.0), "name": "dec-continue, tuned (d=0.07 m)",
+                     "variant": "continue", "setting": "tuned"},  # the fields the targets read, not the label
                     _entry(condition, "learned", "ppo", time=1.34, energy=60.0, seeds=[0, 1]),
                     _entry(condition, "learned", "sac", success=0.5, time=1.20, energy=500.0, seeds=[0, 1])]
     entries[-2]["success_rate"] = 0.98  # ppo misses on random targets
@@ -505,7 +506,10 @@ def test_only_and_merge_put_one_kind_of_row_into_a_published_comparison(tmp_path
 
 def test_merged_rows_go_beside_their_twin_or_their_kind_and_the_rest_is_kept():
     def row(condition, name, kind, value=0.0):
-        return {"condition": condition, "name": name, "kind": kind, "time_iqm": value}
+        shielded = name.endswith(" + shield")  # here the label says so; merge_entries reads the fields
+        return {"condition": condition, "name": name, "kind": kind, "time_iqm": value, "control_mode": "pd",
+                "shielded": shielded, "shield_range": "nominal" if shielded else None, "tags": [],
+                "run": name.removesuffix(" + shield") if kind == "learned" else None}
 
     published = [row("a", "pd", "pd"), row("a", "mpc", "mpc"), row("a", "ppo", "learned"), row("a", "sac", "learned"),
                  row("b", "pd", "pd"), row("b", "mpc", "mpc"), row("b", "mpc (pd)", "mpc"), row("b", "ppo", "learned")]

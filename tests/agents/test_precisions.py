@@ -117,8 +117,13 @@ def test_the_mpc_scores_1_where_the_condition_has_no_optimal_replay(monkeypatch)
     without, _ = comparison.compare(None, [condition.name], include_mpc=False, **kwargs)
     assert not any(key.startswith("time_score") for e in without for key in e)
     assert "no normalized time score: neither the optimal replay nor the MPC" in report.comparison_markdown(without)
-    assert comparison.time_score_reference(["pd", "optimal", "mpc"]) is None  # no pd + shield: no score
-    assert comparison.time_score_reference(["pd + shield", "mpc", "optimal"]) == ("pd + shield", "optimal")
+    by_name["optimal"] = {"name": "optimal", "kind": "optimal", "control_mode": "voltage"}
+    plain = [by_name[name] for name in ("pd", "optimal", "mpc")]
+    assert comparison.time_score_reference(plain) is None  # no pd + shield: no score
+    assert comparison.time_score_reference([by_name[n] for n in ("pd + shield", "mpc", "optimal")]) == (
+        "pd + shield", "optimal")  # the optimal replay before the MPC
+    assert comparison.time_score_reference([by_name[n] for n in ("mpc (pd)", "pd + shield", "mpc")]) == (
+        "pd + shield", "mpc")  # the MPC in "voltage" mode
 
 
 def test_entries_kept_before_the_bands_get_no_precision_table():
