@@ -360,6 +360,9 @@ def _add_compare(sub) -> None:
     p.add_argument("--no-robust-shield", action="store_true",
                    help="leave out PD behind the robust shield in the shifted conditions (about 4 s per episode)")
     p.add_argument("--no-mpc", action="store_true", help="leave out the nonlinear MPC (about 10 s per episode)")
+    p.add_argument("--no-mpc-latency", action="store_true",
+                   help="leave out the MPC under its own latency (its 95th-percentile solve time as actuation delay; "
+                        "about 10 s per episode)")
     p.add_argument("--no-decision-times", action="store_true",
                    help="leave out each row's compute per decision (its policy timed over the condition's first "
                         "episodes, never cached: on an idle machine, a few minutes in all)")
@@ -391,7 +394,8 @@ def _compare(args, argv) -> list[dict]:
                                           include_optimal=not args.no_optimal, cache=args.cache,
                                           shielded=tuple(args.shield), pilots=args.pilots,
                                           robust_shield=not args.no_robust_shield, include_mpc=not args.no_mpc,
-                                          only=tuple(args.only or ()), decision_times=not args.no_decision_times)
+                                          only=tuple(args.only or ()), decision_times=not args.no_decision_times,
+                                          mpc_latency=not args.no_mpc_latency)
     command = "scara-agents " + " ".join(argv)
     if merged:
         entries = merge_entries(merged["policies"], entries, args.only)

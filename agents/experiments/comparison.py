@@ -31,7 +31,9 @@ agents.experiments.targets'.
 
 from __future__ import annotations
 
+import dataclasses
 import hashlib
+import math
 import time
 from functools import partial
 from pathlib import Path
@@ -119,7 +121,7 @@ def compare(runs_root: Path | None = Path("runs/baselines"), conditions: list[st
             episodes: int | None = None, include_optimal: bool = True, verbose: bool = True,
             cache: Path | None = None, shielded: tuple[str, ...] = SHIELDED, heuristics: dict | None = None,
             pilots: bool = False, robust_shield: bool = True, include_mpc: bool = True, only: tuple[str, ...] = (),
-            decision_times: bool = True):
+            decision_times: bool = True, mpc_latency: bool = True):
     """Every policy in every condition: (entries, traces per condition). episodes: per condition
     (None: the condition's own count; a dict: condition -> count, None or missing for its own;
     the C11 episode is one). only: kinds of ONLY_ROWS, evaluated alone (every other row left
@@ -134,7 +136,8 @@ def compare(runs_root: Path | None = Path("runs/baselines"), conditions: list[st
     ``cache`` too; "solve_time": median, p95 and worst per control step [s]). decision_times:
     every entry's compute per control step ("decision_time": median and 95th percentile [s],
     evaluation.decision_time, timed afresh on this machine over the condition's first episodes;
-    the MPC's is its solve time per control step). Every entry names the id it was scored on
+    the MPC's is its solve time per control step). mpc_latency: with the MPC, each of its modes
+    again under its own latency (``added_delay``: _ConditionTable.mpc_latency). Every entry names the id it was scored on
     ("env_id": the protocol's) and says
     whether a shield acts ("shielded") and for
     which parameters it is built ("shield_range": "nominal" or the robust ranges); a learned one
@@ -148,12 +151,13 @@ def compare(runs_root: Path | None = Path("runs/baselines"), conditions: list[st
         started = time.perf_counter()
         count = episodes.get(name) if isinstance(episodes, dict) else episodes
         table = _ConditionTable(get_condition(name), count, verbose, cache)
+        table.mpc_latency_rows = mpc_latency
         if only:
             table.only(only, heuristics, groups, shielded)
         else:
             table.classical(heuristics, shielded, include_optimal, robust_shield)
             if include_mpc:
-                table.mpc()
+                table.mpc(table.mpc_latency_rows)
             table.learned(groups, cache, shielded)
             table.time_scores()
         if decision_times:
@@ -184,12 +188,14 @@ class _ConditionTable:
         self.traces: dict = {}
         self.reference = None  # the heuristic learned agents are compared with: dec-continue at its tuned distance
         self.factories: dict[str, tuple] = {}  # label -> (policy factory, control mode): its decisions timed
+        self.mpc_latency_rows = True  # the MPC also under its own latency
 
     def add(self, label, kind, algorithm, mode, runs, seeds, note="", train_seconds=None, shielded=False, tags=(),
-            run=None, shield_range=None, factory=None, variant=None, setting=None) -> Entry:
+            run=None, shield_range=None, factory=None, variant=None, setting=None, added_delay=0) -> Entry:
         e = Entry(label, kind, algorithm, mode, self.condition.name, ENV_ID, None if seeds is None else tuple(seeds),
                   variant=variant, setting=setting, shielded=shielded,
-                  shield_range=shield_range or ("nominal" if shielded else None), run=run, tags=tuple(sorted(tags)),
+                  shield_range=shield_range or ("nominal" if shielded else None), added_delay=added_delay, run=run,
+                  tags=tuple(sorted(tags)),
                   note=note, figures=figures(runs, seeds, train_seconds))
         self.entries.append(e)
         self.runs.append(runs)
@@ -265,7 +271,7 @@ class _ConditionTable:
         """The rows of ``kinds`` (ONLY_ROWS) alone, as the full table computes them."""
         for kind in kinds:
             if kind == "mpc":
-                self.mpc()
+                self.mpc(self.mpc_latency_rows)
             elif kind == "robust-shield":
                 self.robust_shield()
             elif kind == "learned-shielded":  # the heuristic's episodes first: P(faster than heuristic)
@@ -276,11 +282,31 @@ class _ConditionTable:
             else:
                 raise UserError(f"--only: unknown kind of row {kind!r}; the kinds are {sorted(ONLY_ROWS)}")
 
-    def mpc(self) -> None:
-        """The nonlinear MPC with its nominal model in both control modes, and its solve times."""
+    def mpc(self, latency: bool = True) -> None:
+        """The nonlinear MPC with its nominal model in both control modes, and its solve times;
+        with ``latency``, each mode again under its own latency (mpc_latency)."""
         for label, mode, note in MPC_ROWS:
             result = mpc_episodes(self.condition, self.episodes, self.cache, mode=mode)
             self.update(self.add(label, "mpc", None, mode, [result], None, note=note), solve_time=result["solve_time"])
+            if latency:
+                self.mpc_latency(label, mode, result["solve_time"]["p95"])
+
+    def mpc_latency(self, label: str, mode: str, p95: float) -> None:
+        """The MPC as it would act in real time: each of its actions applied ceil(p95 / control
+        step) control steps late (on top of the condition's own delay), its 95th-percentile solve
+        time in this condition; none where that is 0 steps."""
+        control_dt = self.condition.make_env(mode).unwrapped.control_dt
+        steps = math.ceil(p95 / control_dt - 1e-9)
+        if steps < 1:
+            return
+        own = self.condition.env_kwargs.get("action_delay", 0)
+        delayed = dataclasses.replace(self.condition, env_kwargs={**self.condition.env_kwargs, "action_delay": own + steps})
+        result = mpc_episodes(delayed, self.episodes, self.cache, mode=mode)
+        e = self.add(f"{label}, latency {steps}", "mpc", None, mode, [result], None, added_delay=steps,
+                 note=f"the same MPC under its own latency: its 95th-percentile solve time here, {1e3 * p95:.1f} ms, "
+                      f"as {steps} control steps of actuation delay ({control_dt * 1e3:g} ms each)"
+                      + (f" on top of the condition's {own}" if own else ""))
+        self.update(e, solve_time=result["solve_time"])
 
     def decision_times(self) -> None:
         """Every entry's compute per decision ("decision_time"): its policy timed over the
@@ -339,7 +365,7 @@ def time_score_reference(records) -> tuple[str, str] | None:
     replay, else the MPC in "voltage" mode; None where either is missing."""
     zero = [e for e in records if e["kind"] == "pd" and e.get("shield_range") == "nominal"]
     one = ([e for e in records if e["kind"] == "optimal"]
-           or [e for e in records if e["kind"] == "mpc" and e["control_mode"] == "voltage"])
+           or [e for e in records if e["kind"] == "mpc" and e["control_mode"] == "voltage" and not e.get("added_delay")])
     return (zero[0]["name"], one[0]["name"]) if zero and one else None
 
 

@@ -21,7 +21,7 @@ trained on an offline dataset"""
 SETTINGS = ("tuned", "margin")
 """a heuristic row's trigger distance: the one tuned on the tuning set, or 1.2x it"""
 IDENTITY = ("name", "kind", "algorithm", "control_mode", "condition", "env_id", "seeds", "variant", "setting",
-            "shielded", "shield_range", "run", "tags", "note")
+            "shielded", "shield_range", "added_delay", "run", "tags", "note")
 """the record's keys that say what the row is (Entry's fields); every other key is a figure"""
 
 
@@ -41,6 +41,8 @@ class Entry:
         setting: a heuristic row's distance, one of SETTINGS, else None.
         shielded: whether it acts behind scara_gym.wrappers.Shield.
         shield_range: the parameters the shield is built for ("nominal" or a robust preset), None without one.
+        added_delay: control steps of actuation delay the row adds to its condition's own (the MPC
+            under its own latency: its 95th-percentile solve time in control steps), else 0.
         run: a learned row's registered run (its folder's name), else None.
         tags: the run's registry tags.
         note: how it was made, for people.
@@ -58,6 +60,7 @@ class Entry:
     setting: str | None = None
     shielded: bool = False
     shield_range: str | None = None
+    added_delay: int = 0
     run: str | None = None
     tags: tuple[str, ...] = ()
     note: str = ""
@@ -72,6 +75,8 @@ class Entry:
             raise ValueError(f"setting must be one of {SETTINGS}, got {self.setting!r}")
         if self.shielded != (self.shield_range is not None):
             raise ValueError(f"{self.name}: a shielded row names its shield's range, another row none")
+        if not isinstance(self.added_delay, int) or self.added_delay < 0 or (self.added_delay and self.kind != "mpc"):
+            raise ValueError(f"{self.name}: added_delay is a count of control steps >= 0, on an MPC row only")
         clash = {*IDENTITY, "row"} & set(self.figures)
         if clash:
             raise ValueError(f"{self.name}: figures must not hold the entry's own fields {sorted(clash)}")

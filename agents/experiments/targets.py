@@ -45,7 +45,7 @@ def _mpc_checks(entries, check, summary) -> None:
     modes = sorted({e["control_mode"] for e in entries if e["kind"] == "mpc"}, key=("voltage", "pd").index) or ["voltage"]
     for mode in modes:
         def find(condition, mode=mode):
-            return [e for e in _find(entries, condition, "mpc") if e["control_mode"] == mode]
+            return [e for e in _find(entries, condition, "mpc") if e["control_mode"] == mode and not e.get("added_delay")]
 
         mpc = find("c11")
         text = f"MPC ({mode} mode) on the C11 episode: success, no collision, time within 3 % of the optimal reference's"

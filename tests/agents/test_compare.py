@@ -522,3 +522,33 @@ def test_merged_rows_go_beside_their_twin_or_their_kind_and_the_rest_is_kept():
     merged = comparison.merge_entries(merged, fresh, ["mpc"])
     assert [e["time_iqm"] for e in merged if e["kind"] == "mpc"] == [0.0, 3.0]
     assert [e["name"] for e in merged if e["condition"] == "b"] == ["pd", "mpc", "ppo", "ppo + shield"]
+
+
+@pytest.mark.parametrize("condition, own", [("c11-starts", 0), ("delay-1", 1)])
+def test_the_mpc_under_its_own_latency_acts_its_p95_solve_time_late(monkeypatch, condition, own):
+    """A row per MPC mode with ceil(p95 solve time / control step) more steps of actuation delay
+    than the condition's own, named by the field added_delay; the time score's reference stays
+    the MPC without it. (The MPC is stood in for by pd + shield: the rows' logic is under test.)"""
+    from scara_gym.benchmark import protocol
+
+    delays = []
+
+    def stand_in(condition, episodes, cache, mode="voltage"):
+        delays.append((mode, condition.env_kwargs.get("action_delay", 0)))
+        result = protocol.evaluate(condition, lambda env: comparison.Shield(env, comparison.PDPolicy(env)), "pd",
+                                   episodes)
+        result.pop("condition")
+        result["solve_time"] = {"median": 0.004, "p95": 0.0251, "worst": 0.05, "solves": 10, "failures": 0}
+        return result
+
+    monkeypatch.setattr(comparison, "mpc_episodes", stand_in)
+    entries, _ = comparison.compare(None, [condition], episodes=1, verbose=False, heuristics=HEURISTICS,
+                                    include_optimal=False, decision_times=False)
+    assert delays == [("voltage", own), ("voltage", own + 3), ("pd", own), ("pd", own + 3)]  # 25.1 ms: 3 steps
+    mpc = [e for e in entries if e["kind"] == "mpc"]
+    assert [(e["name"], e["added_delay"]) for e in mpc] == [("mpc", 0), ("mpc, latency 3", 3), ("mpc (pd)", 0),
+                                                            ("mpc (pd), latency 3", 3)]
+    assert all(e["time_score_reference"] == "mpc" for e in entries)
+    without, _ = comparison.compare(None, [condition], episodes=1, verbose=False, heuristics=HEURISTICS,
+                                    include_optimal=False, decision_times=False, mpc_latency=False)
+    assert [e["name"] for e in without if e["kind"] == "mpc"] == ["mpc", "mpc (pd)"]
