@@ -45,7 +45,7 @@ from agents.files import (
 )
 from scara_gym.envs.task import OBSERVATION_LAYOUT
 from scara_gym.model.checks import UserError
-from scara_gym.wrappers import ResidualSetpoint
+from scara_gym.wrappers import ResidualSetpoint, residual_setpoint
 
 ON_TARGET = 1e-5
 """[rad, m] a recorded set-point this close to the target is the target (r = 0)"""
@@ -73,7 +73,7 @@ def transitions(dataset_id: str, config: BCConfig | None = None) -> tuple[np.nda
         actions.append(episode.actions)
     obs, actions = np.concatenate(obs).astype(np.float32), np.concatenate(actions).astype(np.float32)
     if config is not None and config.residual_scale is not None:
-        mapping = ResidualSetpoint(env.unwrapped, config.residual_scale, config.residual_deadzone)
+        mapping = residual_setpoint(env.unwrapped, config.residual_scale, config.residual_deadzone)
         actions = residual_outputs(mapping, obs, actions)
     return obs, actions
 
@@ -164,8 +164,7 @@ class BCPolicy:
         self.actor.load_state_dict(saved["state_dict"])
         self.actor.eval()
         config = BCConfig(**{k: v for k, v in record.items() if k in BCConfig.__dataclass_fields__})
-        self.mapping = None if config.residual_scale is None else \
-            ResidualSetpoint(env.unwrapped, config.residual_scale, config.residual_deadzone)
+        self.mapping = residual_setpoint(env.unwrapped, config.residual_scale, config.residual_deadzone)
         self.name = f"bc ({run_dir.name})"
 
     def reset(self) -> None:

@@ -49,7 +49,7 @@ from agents.files import (
 from scara_gym.benchmark.protocol import SENSOR_NOISE
 from scara_gym.envs.cuda_vector import load_backend
 from scara_gym.model.checks import UserError
-from scara_gym.wrappers import ResidualSetpoint, Shield
+from scara_gym.wrappers import Shield, residual_setpoint
 
 LOG_SQRT_2PI = 0.5 * float(np.log(2 * np.pi))
 
@@ -224,13 +224,6 @@ def ppo_gradients(agent: Agent, x, actions, old_logprobs, advantages, returns, c
     return grads, (policy_loss, 0.5 * (value_error ** 2).mean(), clip_fraction)
 
 
-def residual_mapping(config: Config, env) -> ResidualSetpoint | None:
-    """The residual set-point the agent acts through (scara_gym.wrappers.residual), or None."""
-    if config.residual_scale is None:
-        return None
-    return ResidualSetpoint(env, config.residual_scale, config.residual_deadzone)
-
-
 def make_env(config: Config):
     weights = config.reward_weights
     return gym.make_vec(config.env_id, num_envs=config.num_envs, vectorization_mode="vector_entry_point",
@@ -293,7 +286,7 @@ def _train(config: Config, resume: bool, hooks: list[Hook] | None) -> dict:
     envs = make_env(config)
     # the CUDA env on numba's simulator returns CPU tensors: train where its tensors are
     device = getattr(envs.unwrapped, "device", torch.device(config.device))
-    mapping = residual_mapping(config, envs.unwrapped)
+    mapping = residual_setpoint(envs.unwrapped, config.residual_scale, config.residual_deadzone)
     if mapping is not None and device.type != "cpu":
         raise UserError("residual_scale: the residual set-point maps numpy observations; train on device='cpu'")
     hooks = hooks_for(config, envs, mapping) if hooks is None else list(hooks)
@@ -586,7 +579,7 @@ class TorchPPOPolicy:
         self.agent = Agent(saved["obs_size"], saved["action_size"], saved["hidden_size"], saved["clip_obs"])
         self.agent.load_state_dict(saved["state_dict"])
         self.agent.eval()
-        self.mapping = residual_mapping(run_config, unwrapped)
+        self.mapping = residual_setpoint(unwrapped, run_config.residual_scale, run_config.residual_deadzone)
         # a run trained behind the shield acts behind it (its model: the nominal parameters)
         self.shield = Shield(env, None) if run_config.shield else None
         self.name = f"torch-ppo ({run_dir.name})"

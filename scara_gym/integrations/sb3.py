@@ -29,17 +29,21 @@ from scara_gym.registration import ENV_KWARGS, GOAL_ENV_IDS, LATEST_ENV_ID
 class SB3VecEnv(VecEnv):
     """``SB3VecEnv(num_envs=8, env_id="Scara-C11-v2", control_mode="pd", ...)``: the robots of a
     registered id (the arguments it registers; default the latest id), further arguments as
-    ScaraVectorEnv's over them.
+    ScaraVectorEnv's over them. ``action_wrapper``: a function that wraps the native vector env
+    in a Gymnasium vector action wrapper the agent acts through (e.g.
+    ``functools.partial(scara_gym.wrappers.residual_action, residual_scale=..., deadzone=...)``).
     """
 
-    def __init__(self, num_envs: int = 8, env_id: str = LATEST_ENV_ID, **kwargs: Any) -> None:
+    def __init__(self, num_envs: int = 8, env_id: str = LATEST_ENV_ID, *, action_wrapper=None, **kwargs: Any) -> None:
         checks.choice("env_id", env_id, tuple(i for i in ENV_KWARGS if i not in GOAL_ENV_IDS))
         if "autoreset_mode" in kwargs:
             raise UserError("autoreset_mode: SB3VecEnv sets 'SameStep' itself (SB3 reads the final observation "
                             "in the step that ends an episode)")
         self.env_id = env_id
         self.venv = ScaraVectorEnv(num_envs=num_envs, autoreset_mode="SameStep", **{**ENV_KWARGS[env_id], **kwargs})
-        super().__init__(num_envs, self.venv.single_observation_space, self.venv.single_action_space)
+        # the env the agent's actions go to: the native one, or the wrapper it acts through
+        self.acting = self.venv if action_wrapper is None else action_wrapper(self.venv)
+        super().__init__(num_envs, self.venv.single_observation_space, self.acting.single_action_space)
         self._actions: np.ndarray | None = None
         self._returns = np.zeros(num_envs)
         self._lengths = np.zeros(num_envs, dtype=np.int64)
@@ -49,7 +53,7 @@ class SB3VecEnv(VecEnv):
         """Start every robot's episode (SB3's VecEnv.reset), with the seeds and options set for it; the observations."""
         seeds = self._seeds
         seed = None if all(s is None for s in seeds) else seeds
-        obs, info = self.venv.reset(seed=seed)
+        obs, info = self.acting.reset(seed=seed)
         self.reset_infos = [{"target": info["target"][i]} for i in range(self.num_envs)]
         self._reset_seeds()
         self._reset_options()
@@ -63,7 +67,7 @@ class SB3VecEnv(VecEnv):
 
     def step_wait(self):
         """Step every robot with the kept actions (SB3's VecEnv API): observations, rewards, dones, infos."""
-        obs, reward, terminated, truncated, info = self.venv.step(self._actions)
+        obs, reward, terminated, truncated, info = self.acting.step(self._actions)
         dones = terminated | truncated
         self._returns += reward
         self._lengths += 1

@@ -1,12 +1,20 @@
 """What sits between an agent and the environment and reads the task's internals.
 
 - `residual`: `ResidualSetpoint`, an agent's output as a
-  set-point around the target;
+  set-point around the target, and `residual_action`, an env wrapped to act through it
+  (`ResidualAction`, `ResidualVectorAction`);
 - `shield`: `Shield`, a model-predictive safety shield for any
   policy of the single environment (and any robot of a vector env's task).
 """
 
-from scara_gym.wrappers.residual import ResidualSetpoint
+from scara_gym.wrappers.residual import (
+    ResidualAction,
+    ResidualSetpoint,
+    ResidualVectorAction,
+    residual_action,
+    residual_setpoint,
+)
 from scara_gym.wrappers.shield import Shield, hold_and_climb
 
-__all__ = ["ResidualSetpoint", "Shield", "hold_and_climb"]
+__all__ = ["ResidualAction", "ResidualSetpoint", "ResidualVectorAction", "Shield", "hold_and_climb",
+           "residual_action", "residual_setpoint"]

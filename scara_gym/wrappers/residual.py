@@ -1,6 +1,11 @@
 """A residual set-point around the target: the action map of the engineered agents (numpy
 only, so that any agent, SB3's or a single-file torch one, acts through the same map).
 
+`ResidualSetpoint` is the map; `residual_action(env, residual_scale, deadzone)` wraps an env
+with it, a Gymnasium action wrapper (`ResidualAction`) or its vector twin
+(`ResidualVectorAction`), whose action space is the agent's r in [-1, 1]^3: trainers wrap
+their env with it, and a policy maps its own output with the same class.
+
 The agent's output r in [-1, 1]^3 becomes the set-point  target + residual_scale * deadzone(r),
 deadzone(r) = sign(r) max(|r| - z, 0) / (1 - z), with the target read from the observation
 (q + target error). Every |r| < z commands the target exactly, which the 0.001 success band
@@ -68,3 +73,92 @@ class ResidualSetpoint:
             shaped = np.where(self.scale > 0, (setpoint - target) / self.scale, 0.0)
         r = np.sign(shaped) * (self.deadzone + (1.0 - self.deadzone) * np.abs(shaped))
         return np.clip(np.where(shaped == 0.0, 0.0, r), -1.0, 1.0)
+
+
+class ResidualAction(gym.ActionWrapper):
+    """``env`` acting through a ResidualSetpoint: ``step(r)`` applies the set-point action of r on
+    the observation the env returned last (the agent's own), so that an agent trains and is
+    evaluated in the residual's space with the env's API unchanged.
+
+    Args:
+        env: a single environment of the C11 task (a ScaraEnv, wrapped or not).
+        residual_scale (sequence of 3 floats): ResidualSetpoint's.
+        deadzone: ResidualSetpoint's.
+    """
+
+    def __init__(self, env: gym.Env, residual_scale, deadzone: float = 0.0) -> None:
+        super().__init__(env)
+        self.setpoint = ResidualSetpoint(env, residual_scale, deadzone)
+        self.action_space = gym.spaces.Box(-1.0, 1.0, (3,), np.float32)
+        self.last_obs: np.ndarray | None = None
+
+    def reset(self, *, seed: int | None = None, options: dict | None = None):
+        """The env's reset; its observation kept for the first step's map."""
+        obs, info = self.env.reset(seed=seed, options=options)
+        self.last_obs = obs
+        return obs, info
+
+    def step(self, action):
+        """The env's step with the set-point action of r = ``action``; its observation kept."""
+        obs, reward, terminated, truncated, info = self.env.step(self.action(action))
+        self.last_obs = obs
+        return obs, reward, terminated, truncated, info
+
+    def action(self, action):
+        """The set-point action of r on the last observation."""
+        if self.last_obs is None:
+            raise gym.error.ResetNeeded("ResidualAction: call reset() before step(): the map reads the observation")
+        return self.setpoint(self.last_obs, action)[0]
+
+
+class ResidualVectorAction(gym.vector.VectorActionWrapper):
+    """ResidualAction's vector twin: ``step(r)`` applies every robot's set-point action of its r on
+    the observations the vector env returned last (with autoreset, those the agent sees next).
+
+    Args:
+        env: a vector environment of the C11 task (ScaraVectorEnv, wrapped or not).
+        residual_scale (sequence of 3 floats): ResidualSetpoint's.
+        deadzone: ResidualSetpoint's.
+    """
+
+    def __init__(self, env: gym.vector.VectorEnv, residual_scale, deadzone: float = 0.0) -> None:
+        super().__init__(env)
+        self.setpoint = ResidualSetpoint(env, residual_scale, deadzone)
+        self.single_action_space = gym.spaces.Box(-1.0, 1.0, (3,), np.float32)
+        self.action_space = gym.vector.utils.batch_space(self.single_action_space, self.num_envs)
+        self.last_obs: np.ndarray | None = None
+
+    def reset(self, *, seed=None, options: dict | None = None):
+        """The vector env's reset; its observations kept for the first step's map."""
+        obs, info = self.env.reset(seed=seed, options=options)
+        self.last_obs = obs
+        return obs, info
+
+    def step(self, actions):
+        """The vector env's step with the set-point actions of r = ``actions``; its observations kept."""
+        obs, reward, terminated, truncated, info = self.env.step(self.actions(actions))
+        self.last_obs = obs
+        return obs, reward, terminated, truncated, info
+
+    def actions(self, actions):
+        """Every robot's set-point action of its r on the last observations."""
+        if self.last_obs is None:
+            raise gym.error.ResetNeeded("ResidualVectorAction: call reset() before step(): the map reads the "
+                                        "observations")
+        return self.setpoint(self.last_obs, actions)
+
+
+def residual_action(env, residual_scale, deadzone: float = 0.0):
+    """``env`` wrapped to act through the residual set-point: ResidualVectorAction for a
+    Gymnasium vector env, ResidualAction for a single one.
+    """
+    if isinstance(env, gym.vector.VectorEnv):
+        return ResidualVectorAction(env, residual_scale, deadzone)
+    return ResidualAction(env, residual_scale, deadzone)
+
+
+def residual_setpoint(env, residual_scale, deadzone: float = 0.0) -> ResidualSetpoint | None:
+    """The map a run's settings ask for: a ResidualSetpoint, or None where ``residual_scale`` is
+    None (the run acts in the env's own actions). Trainers and policies build it here alike.
+    """
+    return None if residual_scale is None else ResidualSetpoint(env, residual_scale, deadzone)

@@ -17,7 +17,6 @@ from agents.algorithms.torch_ppo import (
     make_env,
     ppo_gradients,
     ppo_loss,
-    residual_mapping,
     train,
 )
 from agents.algorithms.torch_ppo_config import parse_reward_weights
@@ -25,6 +24,7 @@ from agents.algorithms.torch_ppo_hooks import DemoCloning, DemoResets, Lagrangia
 from agents.cli import run
 from agents.experiments.evaluation import make_policy
 from agents.policies import run_episode
+from scara_gym.wrappers import residual_setpoint
 
 
 def test_running_mean_std_matches_the_batch_statistics():
@@ -190,7 +190,7 @@ def test_the_residual_set_point_option_acts_around_the_target_in_training_and_ev
     inside = mapping(obs, np.array([0.3, -0.49, 0.0]))[0]
     np.testing.assert_allclose(env.unwrapped.action_to_setpoint(inside), info["target"], atol=1e-6)
     with pytest.raises(ValueError, match="residual_scale must be 3 finite numbers"):
-        residual_mapping(Config(residual_scale=(1.0, 2.0)), env.unwrapped)
+        residual_setpoint(env.unwrapped, (1.0, 2.0), 0.5)
     with pytest.raises(ValueError, match="residual_scale: expected 3 numbers"):
         Config.from_dict({"residual_scale": "a,b,c"})
     legacy = Config.from_dict({"residual_scale": "2.5,2.5,0.05", "reward_weights": "time=20", "init_from": ""})
@@ -373,7 +373,7 @@ def test_demo_cloning_starts_the_policy_on_the_reference_and_checks_its_argument
                     num_envs=2, num_steps=8, num_minibatches=1, update_epochs=1, total_timesteps=32,
                     out=str(tmp_path / "run"))
     envs = make_env(config)
-    cloning = DemoCloning(envs, config, residual_mapping(config, envs.unwrapped))
+    cloning = DemoCloning(envs, config, residual_setpoint(envs.unwrapped, config.residual_scale, config.residual_deadzone))
     assert cloning.weight(1) == 1.0 and cloning.weight(3) == 0.25
     agent = Agent(18, 3, 64, 10.0)
     with torch.no_grad():
@@ -388,7 +388,8 @@ def test_demo_cloning_starts_the_policy_on_the_reference_and_checks_its_argument
                        (dict(randomize_target=True), "randomize_target")):
         with pytest.raises(ValueError, match=match):  # the Config refuses what it can tell alone
             wrong = Config(**{**dataclasses.asdict(config), **bad})
-            DemoCloning(make_env(wrong), wrong, residual_mapping(wrong, make_env(wrong).unwrapped))
+            DemoCloning(make_env(wrong), wrong,
+                        residual_setpoint(make_env(wrong).unwrapped, wrong.residual_scale, wrong.residual_deadzone))
 
 
 STEPS_DIGESTS = {

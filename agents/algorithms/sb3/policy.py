@@ -16,18 +16,13 @@ import numpy as np
 from agents.algorithms.sb3.libraries import OFF_POLICY, algorithm_class
 from agents.files import require_trusted
 from scara_gym.model.checks import UserError
-from scara_gym.wrappers import ResidualSetpoint
+from scara_gym.wrappers import residual_setpoint
 
 SHIPPED_MODELS = Path(__file__).resolve().parents[2] / "models"
 MODEL_FILES = ("config.json", "model.zip", "vecnormalize.pkl")
 """the files an SB3 model folder's policy loads: each one that the folder holds must be in its manifest"""
 
 
-def residual_mapping(env, hyper: dict) -> ResidualSetpoint | None:
-    """The residual set-point a hyperparameter block acts through (its residual_scale), or None."""
-    if "residual_scale" not in hyper:
-        return None
-    return ResidualSetpoint(env, hyper["residual_scale"], hyper.get("residual_deadzone", 0.0))
 
 
 def shipped_models() -> list[str]:
@@ -87,7 +82,7 @@ class SB3Policy:
     def _attach(self, model, normalizer, hyper: dict) -> None:
         self.model = model
         self.normalizer = normalizer if normalizer is not None and normalizer.norm_obs else None
-        self.mapping = residual_mapping(self.env, hyper)
+        self.mapping = residual_setpoint(self.env, hyper.get("residual_scale"), hyper.get("residual_deadzone", 0.0))
 
     def reset(self) -> None:
         pass

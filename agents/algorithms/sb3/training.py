@@ -35,6 +35,7 @@ import json
 import pickle
 import shutil
 import time
+from functools import partial
 from pathlib import Path
 
 import numpy as np
@@ -42,7 +43,7 @@ import numpy as np
 from agents.algorithms.progress import Progress
 from agents.algorithms.sb3.hyperparams import check_hyperparams, load_hyperparams
 from agents.algorithms.sb3.libraries import algorithm_class, check_library
-from agents.algorithms.sb3.policy import SHIPPED_MODELS, residual_mapping
+from agents.algorithms.sb3.policy import SHIPPED_MODELS
 from agents.files import (
     DIGESTS,
     POLICY_FILES,
@@ -58,6 +59,7 @@ from scara_gym.extras import require
 from scara_gym.model import checks
 from scara_gym.model.checks import UserError
 from scara_gym.registration import ENV_KWARGS, GOAL_ENV_IDS
+from scara_gym.wrappers import residual_action
 
 ALGORITHMS = ("ppo", "sac", "td3")
 # entries of a hyperparameter block that configure the run, not the SB3 algorithm
@@ -90,20 +92,25 @@ def make_envs(env_id: str, env_kwargs: dict, hyper: dict, seed: int, normalizer:
     from stable_baselines3.common.monitor import Monitor
     from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
 
-    from agents.algorithms.sb3.vec_env import ResidualVecEnv
     from scara_gym.integrations.sb3 import SB3VecEnv
 
+    # the residual set-point (where the block has one): both envs wrapped to act through it
+    residual = (partial(residual_action, residual_scale=hyper["residual_scale"],
+                        deadzone=hyper.get("residual_deadzone", 0.0))
+                if "residual_scale" in hyper and env_id not in GOAL_ENV_IDS else None)
+
+    def single():
+        env = gym.make(env_id, **env_kwargs)
+        return Monitor(env if residual is None else residual(env))
+
     if env_id in GOAL_ENV_IDS:  # HER asks the env for compute_reward: gym envs in SB3's DummyVecEnv
-        train_env = DummyVecEnv([lambda: Monitor(gym.make(env_id, **env_kwargs))] * hyper["n_envs"])
+        train_env = DummyVecEnv([single] * hyper["n_envs"])
     else:
         train_env = SB3VecEnv(num_envs=hyper["n_envs"], env_id=env_id, num_threads=hyper.get("env_threads", 1),
-                              **env_kwargs)
+                              action_wrapper=residual, **env_kwargs)
     train_env.seed(seed)
-    eval_env = DummyVecEnv([lambda: Monitor(gym.make(env_id, **env_kwargs))])
+    eval_env = DummyVecEnv([single])
     eval_env.seed(10_000 + seed)
-    mapping = residual_mapping(train_env.venv, hyper) if env_id not in GOAL_ENV_IDS else None
-    if mapping is not None:
-        train_env, eval_env = ResidualVecEnv(train_env, mapping), ResidualVecEnv(eval_env, mapping)
     norm = _normalize_kwargs(hyper)
     if norm is not None:
         gamma = hyper.get("gamma", 0.99)
