@@ -64,13 +64,21 @@ def time_score_fields(runs: list[dict], zero_runs: list[dict], one_runs: list[di
 
 
 def interval_estimates(scores: dict, function, reps: int, seed: int):
-    """rliable's point estimates and 95 % stratified-bootstrap intervals."""
+    """rliable's point estimates and 95 % stratified-bootstrap intervals, the same for the same
+    scores and seed. rliable's stratified bootstrap draws its resamples from numpy's global
+    generator, whatever random_state it is given (rliable 1.2's update_indices): that generator
+    is seeded here for the call and given back its state after it."""
     require("rliable")
     from rliable import library as rly
 
-    with warnings.catch_warnings():  # rliable passes arch a RandomState, which arch deprecates
-        warnings.simplefilter("ignore", FutureWarning)
-        return rly.get_interval_estimates(scores, function, reps=reps, random_state=np.random.RandomState(seed))
+    state = np.random.get_state()
+    np.random.seed(seed)
+    try:
+        with warnings.catch_warnings():  # rliable passes arch a RandomState, which arch deprecates
+            warnings.simplefilter("ignore", FutureWarning)
+            return rly.get_interval_estimates(scores, function, reps=reps, random_state=np.random.RandomState(seed))
+    finally:
+        np.random.set_state(state)
 
 
 def iqm_with_ci(scores: np.ndarray, reps: int = 2000, seed: int = 0) -> tuple[float, list[float]]:

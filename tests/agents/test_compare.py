@@ -552,3 +552,16 @@ def test_the_mpc_under_its_own_latency_acts_its_p95_solve_time_late(monkeypatch,
     without, _ = comparison.compare(None, [condition], episodes=1, verbose=False, heuristics=HEURISTICS,
                                     include_optimal=False, decision_times=False, mpc_latency=False)
     assert [e["name"] for e in without if e["kind"] == "mpc"] == ["mpc", "mpc (pd)"]
+
+
+def test_the_intervals_are_the_same_for_the_same_scores_and_leave_numpys_generator_alone():
+    """rliable draws its bootstrap from numpy's global generator: seeded per call, so that a rerun
+    of the comparison gives the published intervals, and given back its state."""
+    scores = np.random.default_rng(0).uniform(1, 3, (5, 30))
+    np.random.seed(123)
+    before = np.random.get_state()[1].copy()
+    first, again = statistics.iqm_with_ci(scores, reps=300), statistics.iqm_with_ci(scores, reps=300)
+    assert first == again and np.array_equal(np.random.get_state()[1], before)
+    assert statistics.iqm_with_ci(scores, reps=300, seed=1)[1] != first[1]  # the seed is the bootstrap's
+    x, y = np.random.default_rng(1).uniform(size=(3, 20)), np.random.default_rng(2).uniform(size=(2, 20))
+    assert statistics.probability_faster(x, y, reps=200) == statistics.probability_faster(x, y, reps=200)
