@@ -204,15 +204,25 @@ class _TimedPolicy:
 def decision_time(condition: Condition, policy_factory, mode: str, episodes: int = DECISION_EPISODES) -> dict:
     """A policy's compute per control step in a condition: the median and 95th percentile [s] of
     the wall time of each of its decisions over the condition's first ``episodes`` evaluation
-    episodes, on one thread of this machine. Never cached: a property of the machine it is
-    measured on, measured again by each comparison (which says the machine's load)."""
+    episodes, torch on one thread. Never cached: a property of the machine it is measured on,
+    measured again by each comparison; on a loaded machine the scheduler's time slices (about
+    15 ms) land in the 95th percentile, so the published figures come from an idle one."""
     timed: list[_TimedPolicy] = []
+    threads = {}  # torch's own setting, given back after
 
     def factory(env):
         timed.append(_TimedPolicy(policy_factory(env)))
+        torch = sys.modules.get("torch")  # imported by the policy's loader, if it is a network
+        if torch is not None and not threads:  # its forward pass on one thread, as the env steps on one
+            threads["torch"] = torch.get_num_threads()
+            torch.set_num_threads(1)
         return timed[-1]
 
-    evaluate_condition(condition, factory, mode, min(episodes, condition.episodes), record=0)
+    try:
+        evaluate_condition(condition, factory, mode, min(episodes, condition.episodes), record=0)
+    finally:
+        if threads:
+            sys.modules["torch"].set_num_threads(threads["torch"])
     seconds = np.array([s for t in timed for s in t.seconds])
     return {"median": float(np.median(seconds)), "p95": float(np.percentile(seconds, 95)),
             "decisions": int(seconds.size)}
