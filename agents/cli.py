@@ -359,7 +359,7 @@ def _add_compare(sub) -> None:
     p.add_argument("--pilots", action="store_true", help="also the runs tagged 'pilot' (left out by default)")
     p.add_argument("--no-robust-shield", action="store_true",
                    help="leave out PD behind the robust shield in the shifted conditions (about 4 s per episode)")
-    p.add_argument("--no-mpc", action="store_true", help="leave out the nonlinear MPC (about 10 s per episode)")
+    p.add_argument("--no-mpc", action="store_true", help="leave out the nonlinear MPC (about 10 s per episode) and the real-time MPC")
     p.add_argument("--no-mpc-latency", action="store_true",
                    help="leave out the MPC under its own latency (its 95th-percentile solve time as actuation delay; "
                         "about 10 s per episode)")

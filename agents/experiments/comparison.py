@@ -47,6 +47,7 @@ from agents.experiments.evaluation import (
     learned_episodes,
     learned_runs,
     mpc_episodes,
+    rti_episodes,
 )
 from agents.experiments.registry import RUNS, tagged
 from agents.experiments.statistics import (
@@ -175,6 +176,12 @@ MPC_ROWS = (
                        "at the step's start"),
 )
 """the MPC's comparison rows: (label, control mode, note)"""
+RTI_ROWS = (
+    ("mpc-rti", "voltage", "real-time MPC: the MPC's problem by one SQP step per control step on HPIPM from the "
+                           "shifted plan (agents.policies.mpc_rti)"),
+    ("mpc-rti (pd)", "pd", "the real-time MPC in the \"pd\" mode"),
+)
+"""the real-time MPC's comparison rows (kind "mpc-rti"): (label, control mode, note)"""
 
 
 class _ConditionTable:
@@ -283,15 +290,17 @@ class _ConditionTable:
                 raise UserError(f"--only: unknown kind of row {kind!r}; the kinds are {sorted(ONLY_ROWS)}")
 
     def mpc(self, latency: bool = True) -> None:
-        """The nonlinear MPC with its nominal model in both control modes, and its solve times;
-        with ``latency``, each mode again under its own latency (mpc_latency)."""
-        for label, mode, note in MPC_ROWS:
-            result = mpc_episodes(self.condition, self.episodes, self.cache, mode=mode)
-            self.update(self.add(label, "mpc", None, mode, [result], None, note=note), solve_time=result["solve_time"])
-            if latency:
-                self.mpc_latency(label, mode, result["solve_time"]["p95"])
+        """The nonlinear MPC and the real-time MPC with their nominal model in both control modes,
+        and their solve times; with ``latency``, each again under its own latency (mpc_latency)."""
+        for kind, rows, episodes in (("mpc", MPC_ROWS, mpc_episodes), ("mpc-rti", RTI_ROWS, rti_episodes)):
+            for label, mode, note in rows:
+                result = episodes(self.condition, self.episodes, self.cache, mode=mode)
+                self.update(self.add(label, kind, None, mode, [result], None, note=note),
+                            solve_time=result["solve_time"])
+                if latency:
+                    self.mpc_latency(label, kind, mode, result["solve_time"]["p95"], episodes)
 
-    def mpc_latency(self, label: str, mode: str, p95: float) -> None:
+    def mpc_latency(self, label: str, kind: str, mode: str, p95: float, episodes=None) -> None:
         """The MPC as it would act in real time: each of its actions applied ceil(p95 / control
         step) control steps late (on top of the condition's own delay), its 95th-percentile solve
         time in this condition; none where that is 0 steps."""
@@ -301,9 +310,9 @@ class _ConditionTable:
             return
         own = self.condition.env_kwargs.get("action_delay", 0)
         delayed = dataclasses.replace(self.condition, env_kwargs={**self.condition.env_kwargs, "action_delay": own + steps})
-        result = mpc_episodes(delayed, self.episodes, self.cache, mode=mode)
-        e = self.add(f"{label}, latency {steps}", "mpc", None, mode, [result], None, added_delay=steps,
-                 note=f"the same MPC under its own latency: its 95th-percentile solve time here, {1e3 * p95:.1f} ms, "
+        result = (episodes or mpc_episodes)(delayed, self.episodes, self.cache, mode=mode)
+        e = self.add(f"{label}, latency {steps}", kind, None, mode, [result], None, added_delay=steps,
+                 note=f"the same controller under its own latency: its 95th-percentile solve time here, {1e3 * p95:.1f} ms, "
                       f"as {steps} control steps of actuation delay ({control_dt * 1e3:g} ms each)"
                       + (f" on top of the condition's {own}" if own else ""))
         self.update(e, solve_time=result["solve_time"])
@@ -370,7 +379,7 @@ def time_score_reference(records) -> tuple[str, str] | None:
 
 
 ONLY_ROWS = {
-    "mpc": lambda e: e["kind"] == "mpc",
+    "mpc": lambda e: e["kind"] in ("mpc", "mpc-rti"),
     "robust-shield": lambda e: e["kind"] == "pd" and e.get("shield_range") == ROBUST_RANGES,
     "learned-shielded": shield_added,
 }

@@ -15,9 +15,9 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
-KINDS = ("pd", "heuristic", "optimal", "mpc", "learned", "offline")
-"""the kinds of row: PD, the seed paper's heuristic, the optimal replay, the MPC, a learned run, a run
-trained on an offline dataset"""
+KINDS = ("pd", "heuristic", "optimal", "mpc", "mpc-rti", "learned", "offline")
+"""the kinds of row: PD, the seed paper's heuristic, the optimal replay, the MPC, the real-time MPC, a
+learned run, a run trained on an offline dataset"""
 SETTINGS = ("tuned", "margin")
 """a heuristic row's trigger distance: the one tuned on the tuning set, or 1.2x it"""
 IDENTITY = ("name", "kind", "algorithm", "control_mode", "condition", "env_id", "seeds", "variant", "setting",
@@ -75,7 +75,8 @@ class Entry:
             raise ValueError(f"setting must be one of {SETTINGS}, got {self.setting!r}")
         if self.shielded != (self.shield_range is not None):
             raise ValueError(f"{self.name}: a shielded row names its shield's range, another row none")
-        if not isinstance(self.added_delay, int) or self.added_delay < 0 or (self.added_delay and self.kind != "mpc"):
+        if (not isinstance(self.added_delay, int) or self.added_delay < 0
+                or (self.added_delay and self.kind not in ("mpc", "mpc-rti"))):
             raise ValueError(f"{self.name}: added_delay is a count of control steps >= 0, on an MPC row only")
         clash = {*IDENTITY, "row"} & set(self.figures)
         if clash:

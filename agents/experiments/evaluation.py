@@ -19,8 +19,9 @@ import numpy as np
 from agents.algorithms.loaders import load_policy, run_spec
 from agents.experiments.runs import is_finished
 from agents.files import POLICY_FILES, load_arrays, save_arrays
-from agents.policies import mpc as mpc_module
+from agents.policies import mpc as mpc_module, mpc_rti as mpc_rti_module
 from agents.policies.mpc import MPCConfig, MPCPolicy, solve_time_summary
+from agents.policies.mpc_rti import RTIConfig, RTIMPCPolicy
 from scara_gym import __version__
 from scara_gym.benchmark.episodes import BAND_NAMES, band_keys
 from scara_gym.benchmark.protocol import ENV_ID, Condition, evaluate as evaluate_condition, get_condition
@@ -160,11 +161,33 @@ def mpc_episodes(condition: Condition, episodes: int | None = None, cache: Path 
     and seeds). config: the MPC's (None: its defaults); mode: the environment's control mode
     ("voltage": the MPC commands voltages, "pd": set-points)."""
     config = MPCConfig() if config is None else config
+    return _controller_episodes("mpc", MPC_SOURCES, lambda env: MPCPolicy(env, config), dataclasses.asdict(config),
+                                condition, episodes, cache, mode)
+
+
+RTI_SOURCES = (mpc_module, mpc_rti_module, symbolic_module)
+"""the modules whose source a real-time MPC evaluation's cache key digests (beside its configuration)"""
+
+
+def rti_episodes(condition: Condition, episodes: int | None = None, cache: Path | None = None,
+                 config: RTIConfig | None = None, mode: str = "voltage") -> dict:
+    """mpc_episodes for the real-time MPC (agents.policies.mpc_rti: one SQP step per control
+    step on HPIPM), its solve times those of its whole step; cached under its own sources and
+    configuration."""
+    config = RTIConfig() if config is None else config
+    return _controller_episodes("mpc-rti", RTI_SOURCES, lambda env: RTIMPCPolicy(env, config),
+                                dataclasses.asdict(config), condition, episodes, cache, mode)
+
+
+def _controller_episodes(prefix: str, sources, make, settings: dict, condition: Condition, episodes: int | None,
+                         cache: Path | None, mode: str) -> dict:
+    """An optimizing controller's episodes (the MPC's, the real-time MPC's) with its solve times,
+    cached under ``prefix``, ``sources`` and its ``settings``."""
     policies: list[MPCPolicy] = []
 
     def run() -> dict:
         def factory(env):
-            policies.append(MPCPolicy(env, config))
+            policies.append(make(env))
             return policies[-1]
 
         result = evaluate_condition(condition, factory, mode, episodes)
@@ -173,8 +196,8 @@ def mpc_episodes(condition: Condition, episodes: int | None = None, cache: Path 
         result["solver_failures"] = np.asarray(policies[0].failures)
         return result
 
-    description = ["mpc", dataclasses.asdict(config), mode, *condition_description(condition, episodes)]
-    result = cached_evaluation(cache, "mpc", MPC_SOURCES, description, run)
+    description = [prefix, settings, mode, *condition_description(condition, episodes)]
+    result = cached_evaluation(cache, prefix, sources, description, run)
     result["solve_time"] = {**solve_time_summary(result["solve_times"]), "failures": int(result["solver_failures"])}
     return result
 

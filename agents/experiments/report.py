@@ -119,7 +119,7 @@ def comparison_markdown(entries: list[dict]) -> str:
             + condition_tables(entries))
 
 
-CLASSICAL_KINDS = ("pd", "heuristic", "mpc")
+CLASSICAL_KINDS = ("pd", "heuristic", "mpc", "mpc-rti")
 """the kinds a verdict counts as classical controllers (the optimal open-loop replay is a reference, not one)"""
 
 

@@ -90,7 +90,7 @@ def test_comparison_command_writes_every_policy(tmp_path):
         assert e["time_ci"][0] <= e["time_iqm"] <= e["time_ci"][1]
         assert e["env_id"] == LATEST_ENV_ID  # every entry names the id it was scored on
         t = e["decision_time"]  # every row's compute per decision: the MPC's its solves', the others timed
-        assert 0.0 < t["median"] <= t["p95"] and t["timed"] == ("solve" if e["kind"] == "mpc" else "decision")
+        assert 0.0 < t["median"] <= t["p95"] and t["timed"] == ("solve" if e["kind"] in ("mpc", "mpc-rti") else "decision")
         assert t["decisions"] > 0  # the episode's control steps (PD's ends at its collision)
     pd, optimal, td3 = entries[0], entries[names.index("optimal")], entries[names.index("td3")]
     assert pd["collision_rate"] == 1.0 and pd["time_iqm"] == statistics.TIME_LIMIT
@@ -548,10 +548,15 @@ def test_the_mpc_under_its_own_latency_acts_its_p95_solve_time_late(monkeypatch,
     mpc = [e for e in entries if e["kind"] == "mpc"]
     assert [(e["name"], e["added_delay"]) for e in mpc] == [("mpc", 0), ("mpc, latency 3", 3), ("mpc (pd)", 0),
                                                             ("mpc (pd), latency 3", 3)]
-    assert all(e["time_score_reference"] == "mpc" for e in entries)
+    assert all(e["time_score_reference"] == "mpc" for e in entries)  # not the real-time MPC, nor a delayed one
+    rti = [e for e in entries if e["kind"] == "mpc-rti"]  # the real-time MPC, and it under its own latency
+    assert [e["name"] for e in rti if not e["added_delay"]] == ["mpc-rti", "mpc-rti (pd)"]
+    assert all(e["name"].endswith(f"latency {e['added_delay']}") for e in rti if e["added_delay"])
+    assert all(e["solve_time"]["solves"] > 0 for e in rti)
     without, _ = comparison.compare(None, [condition], episodes=1, verbose=False, heuristics=HEURISTICS,
                                     include_optimal=False, decision_times=False, mpc_latency=False)
-    assert [e["name"] for e in without if e["kind"] == "mpc"] == ["mpc", "mpc (pd)"]
+    assert [e["name"] for e in without if e["kind"] in ("mpc", "mpc-rti")] == ["mpc", "mpc (pd)", "mpc-rti",
+                                                                                "mpc-rti (pd)"]
 
 
 def test_the_intervals_are_the_same_for_the_same_scores_and_leave_numpys_generator_alone():
