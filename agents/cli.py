@@ -664,9 +664,10 @@ def _bench(args, argv) -> str:
 
 def _add_datasets(sub) -> None:
     p = sub.add_parser("datasets", help="offline datasets in Minari's format (the minari extra)",
-                       description="Build the offline datasets (agents.experiments.datasets: scara/<task>/<tier>-v0) "
-                                   "into Minari's data folder (MINARI_DATASETS_PATH, else ~/.minari/datasets) or --out; "
-                                   "'list' names them, 'build all' builds every one.")
+                       description="Build the offline datasets (agents.experiments.datasets: scara/<task>/<tier>-vN, "
+                                   "-v0 on Scara-C11-v1, -v1 on Scara-C11-v2) into Minari's data folder "
+                                   "(MINARI_DATASETS_PATH, else ~/.minari/datasets) or --out; 'list' names them, "
+                                   "'build all' builds every one of --version.")
     p.add_argument("action", choices=("build", "list"))
     p.add_argument("name", nargs="?", help="a dataset id (scara-agents datasets list), or 'all'")
     p.add_argument("--episodes", type=int, help="episodes per dataset (default: its own count; medium-replay: "
@@ -676,6 +677,8 @@ def _add_datasets(sub) -> None:
                    help="the published runs the experts are picked from (default: $SCARA_GYM_PUBLISHED_RUNS, else the "
                         "clone's results/runs; the random and medium tiers record the published expert without them)")
     p.add_argument("--summary", type=_file, help="with 'all': write the datasets' sizes and build times here (JSON)")
+    p.add_argument("--version", choices=tuple(datasets.DATASET_VERSIONS), default=datasets.LATEST_DATASET_VERSION,
+                   help="with 'all': the datasets' version (default: the latest, on the protocol's id)")
     p.set_defaults(handler=_datasets)
 
 
@@ -689,7 +692,7 @@ def _datasets(args, argv):
     _positive("--episodes", args.episodes)
     require("minari")
     if args.name == "all":
-        return datasets.build_all(args.episodes, args.out, args.runs, summary=args.summary)
+        return datasets.build_all(args.episodes, args.out, args.runs, summary=args.summary, version=args.version)
     return datasets.build(args.name, args.episodes, args.out, args.runs)
 
 

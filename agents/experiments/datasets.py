@@ -1,11 +1,12 @@
 """Offline datasets in Minari's format: D4RL-style tiers for the C11 task and for randomized targets.
 
-`DATASETS` names every dataset (``scara/<task>/<tier>-v0``); `build` writes one
+`DATASETS` names every dataset (``scara/<task>/<tier>-vN``: N the version, `DATASET_VERSIONS`: -v0
+on ``Scara-C11-v1``, frozen with it, and -v1 on ``Scara-C11-v2``, the protocol's id); `build` writes one
 through Minari's own API (``minari.create_dataset_from_buffers``) into Minari's local data
 folder (``MINARI_DATASETS_PATH``, else ``~/.minari/datasets``) or ``out``. Nothing needs the
 network.
 
-| task | environment (``DATASET_ENV_ID``, "pd" mode) |
+| task | environment (the version's id, "pd" mode) |
 |---|---|
 | ``c11`` | the C11 target, starts drawn from the protocol's start region (``randomize_start=True``) |
 | ``random-targets`` | targets drawn per episode beyond the wall (``randomize_target=True``) |
@@ -75,13 +76,20 @@ TASKS = {
 }
 """task -> the environment arguments of its datasets (over DATASET_ENV_ID's, "pd" mode)"""
 DATASET_ENV_ID = "Scara-C11-v1"
-"""the id the -v0 datasets are built and replayed on (frozen with them; a build on the protocol's id
-is a new dataset version, -v1, with its own expert)"""
+"""the id the -v0 datasets are built and replayed on (frozen with them)"""
+DATASET_VERSIONS = {"v0": DATASET_ENV_ID, "v1": "Scara-C11-v2"}
+"""dataset version -> the id its datasets are built and replayed on: a build on a newer id is a new
+version, with its own expert picked on that id"""
+LATEST_DATASET_VERSION = "v1"
+"""the version ``datasets build all`` builds: the protocol's id's"""
 TASK_CONDITIONS = {"c11": "c11-starts", "random-targets": "random-targets"}
 """task -> the protocol condition whose tuning set picks its expert"""
 TIERS = ("expert", "medium", "random", "medium-replay", "mixed")
 DATASET_SEED = 60_000_000
-"""dataset k (DATASETS' order) resets from DATASET_SEED + k * 10^6 on (all below the tuning seeds)"""
+"""dataset k of a version (DATASETS' order) resets from DATASET_SEED + k * 10^6 on, -v1's from
+VERSION_SEED_OFFSET more (all below the tuning seeds, none in the reference scores' band)"""
+VERSION_SEED_OFFSET = {"v0": 0, "v1": 20_000_000}
+"""each version's seed bands: -v1's from 80M on, beyond -v0's and the reference band (70M-72M)"""
 REFERENCE_SEED = 70_000_000
 """the reference scores' episodes: task k from REFERENCE_SEED + k * 10^6"""
 REFERENCE_EPISODES = 100
@@ -130,18 +138,24 @@ class DatasetSpec:
     tier: str
     episodes: int
     index: int
+    version: str = "v0"
 
     @property
     def name(self) -> str:
-        return f"scara/{self.task}/{self.tier}-v0"
+        return f"scara/{self.task}/{self.tier}-{self.version}"
+
+    @property
+    def env_id(self) -> str:
+        """The id the dataset is built and replayed on (its version's)."""
+        return DATASET_VERSIONS[self.version]
 
     @property
     def seed(self) -> int:
-        return DATASET_SEED + self.index * 10**6
+        return DATASET_SEED + VERSION_SEED_OFFSET[self.version] + self.index * 10**6
 
 
-DATASETS = {s.name: s for s in (DatasetSpec(task, tier, 1000, k) for k, (task, tier) in
-                                enumerate((t, tier) for t in TASKS for tier in TIERS))}
+DATASETS = {s.name: s for s in (DatasetSpec(task, tier, 1000, k, version) for version in DATASET_VERSIONS
+                                for k, (task, tier) in enumerate((t, tier) for t in TASKS for tier in TIERS))}
 """every dataset of the set by its Minari id"""
 
 
@@ -152,9 +166,9 @@ def get_dataset(name: str) -> DatasetSpec:
     return DATASETS[name]
 
 
-def make_env(task: str) -> gym.Env:
-    """The environment of a task's datasets (what `environment` builds again)."""
-    return gym.make(DATASET_ENV_ID, control_mode=CONTROL_MODE, **TASKS[task])
+def make_env(task: str, env_id: str = DATASET_ENV_ID) -> gym.Env:
+    """The environment of a task's datasets on ``env_id`` (what `environment` builds again)."""
+    return gym.make(env_id, control_mode=CONTROL_MODE, **TASKS[task])
 
 
 class RandomActions:
@@ -239,9 +253,9 @@ def _as_arrays(infos: dict) -> dict:
 
 def pick_expert(task: str, runs: Path, episodes: int = TUNING_EPISODES) -> dict:
     """The task's expert: among EXPERT_CANDIDATES, those without a collision on the tuning set
-    of the task's condition (scara_gym.benchmark.protocol.tuning: never an evaluation seed), the
-    highest success rate, then the shortest mean time to target. Returns the record: the spec,
-    and every candidate's figures."""
+    of the task's condition (scara_gym.benchmark.protocol.tuning: never an evaluation seed, on
+    the protocol's id for every version), the highest success rate, then the shortest mean time
+    to target. Returns the record: the spec, and every candidate's figures."""
     condition = tuning(TASK_CONDITIONS[task], episodes)
     figures = []
     for spec in EXPERT_CANDIDATES[task]:
@@ -305,23 +319,23 @@ def rollout_recorder():
     return RolloutRecorder()
 
 
-def train_medium(task: str, folder: Path, seed: int = 0) -> tuple[Path, list]:
-    """The task's medium agent (the single-file PPO for MEDIUM_STEPS steps, seed ``seed``) trained
-    into ``folder``, and every episode its rollouts completed."""
+def train_medium(task: str, folder: Path, seed: int = 0, env_id: str = DATASET_ENV_ID) -> tuple[Path, list]:
+    """The task's medium agent (the single-file PPO for MEDIUM_STEPS steps on ``env_id``, seed
+    ``seed``) trained into ``folder``, and every episode its rollouts completed."""
     from agents.algorithms.torch_ppo import Config, train
 
     recorder = rollout_recorder()
-    config = Config(**MEDIUM_FIELDS[task], env_id=DATASET_ENV_ID, control_mode=CONTROL_MODE, seed=seed,
+    config = Config(**MEDIUM_FIELDS[task], env_id=env_id, control_mode=CONTROL_MODE, seed=seed,
                     total_timesteps=MEDIUM_STEPS, torch_threads=1, out=str(folder))
     train(config, overwrite=True, hooks=[recorder])
     return folder, recorder.episodes
 
 
-def reference_scores(task: str, expert: str) -> tuple[float, float]:
-    """(random actions' mean return, the expert's) over REFERENCE_EPISODES episodes of the task."""
+def reference_scores(task: str, expert: str, env_id: str = DATASET_ENV_ID) -> tuple[float, float]:
+    """(random actions' mean return, the expert's) over REFERENCE_EPISODES episodes of the task on ``env_id``."""
     seeds = list(range(REFERENCE_SEED + list(TASKS).index(task) * 10**6,
                        REFERENCE_SEED + list(TASKS).index(task) * 10**6 + REFERENCE_EPISODES))
-    env = make_env(task)
+    env = make_env(task, env_id)
     low = run_episodes(env, RandomActions(env, seeds[0]), seeds)["return"].mean()
     high = run_episodes(env, load_policy(expert, env), seeds)["return"].mean()
     return float(low), float(high)
@@ -346,10 +360,10 @@ def build(name: str, episodes: int | None = None, out: Path | None = None, runs:
     started = time.perf_counter()
     if expert is None:  # before any episode: a missing runs folder is said at once
         expert, scores = _expert(spec, runs, scores)
-    env = make_env(spec.task)
+    env = make_env(spec.task, spec.env_id)
     seeds = list(range(spec.seed, spec.seed + count))
-    low, high = scores or reference_scores(spec.task, expert["policy"])
-    record: dict = {"package": "scara_gym", "version": __version__, "env_id": DATASET_ENV_ID,
+    low, high = scores or reference_scores(spec.task, expert["policy"], spec.env_id)
+    record: dict = {"package": "scara_gym", "version": __version__, "env_id": spec.env_id,
                     "env_kwargs": {"control_mode": CONTROL_MODE, **TASKS[spec.task]}, "task": spec.task,
                     "tier": spec.tier, "first_seed": None if spec.tier == "medium-replay" else seeds[0],
                     "expert": expert}
@@ -361,7 +375,8 @@ def build(name: str, episodes: int | None = None, out: Path | None = None, runs:
         elif spec.tier == "mixed":
             policy = Alternating(load_policy(expert["policy"], env), RandomActions(env, spec.seed))
         else:  # medium, medium-replay: one training run
-            folder, rollouts = medium or train_medium(spec.task, Path(work or scratch) / f"{spec.task}-medium")
+            folder, rollouts = medium or train_medium(spec.task, Path(work or scratch) / f"{spec.task}-medium",
+                                                      env_id=spec.env_id)
             record["medium_run"] = {**{k: list(v) if isinstance(v, tuple) else v
                                        for k, v in MEDIUM_FIELDS[spec.task].items()},
                                     "total_timesteps": MEDIUM_STEPS, "seed": 0}
@@ -390,7 +405,7 @@ def _expert(spec: DatasetSpec, runs: Path | None, scores: tuple[float, float] | 
     runs = published_runs()
     if runs is not None and runs.is_dir():
         return pick_expert(spec.task, runs), scores
-    if spec.tier in EXPERT_TIERS:
+    if spec.tier in EXPERT_TIERS or spec.version != "v0":  # -v0's expert and scores are recorded, not a newer one's
         require_published_runs()  # one line: the runs are missing, and how to get them
     published = PUBLISHED_EXPERTS[spec.task]
     return ({"policy": published["policy"].format(runs="results/runs"), "rule": "recorded: the expert "
@@ -456,19 +471,23 @@ def replay(dataset, episodes: int | None = None) -> int:
 
 
 def build_all(episodes: int | None = None, out: Path | None = None, runs: Path | None = None,
-              work: Path | None = None, summary: Path | None = None) -> list[dict]:
-    """Every dataset of DATASETS (each task's expert picked once); rows of name, episodes, steps,
-    size [MB] and build time [s], written as JSON to ``summary`` where given."""
+              work: Path | None = None, summary: Path | None = None,
+              version: str = LATEST_DATASET_VERSION) -> list[dict]:
+    """Every dataset of DATASETS of ``version`` (each task's expert picked once, on the version's
+    id); rows of name, episodes, steps, size [MB] and build time [s], written as JSON to
+    ``summary`` where given."""
+    checks.choice("version", version, tuple(DATASET_VERSIONS))
     rows, experts, scores, mediums = [], {}, {}, {}
     runs = require_published_runs(runs)  # the expert tiers need them
     with tempfile.TemporaryDirectory() as scratch:
-        for name, spec in DATASETS.items():
+        for name, spec in ((n, s) for n, s in DATASETS.items() if s.version == version):
             started = time.perf_counter()
             if spec.task not in experts:
                 experts[spec.task] = pick_expert(spec.task, runs)
-                scores[spec.task] = reference_scores(spec.task, experts[spec.task]["policy"])
+                scores[spec.task] = reference_scores(spec.task, experts[spec.task]["policy"], spec.env_id)
             if spec.tier in ("medium", "medium-replay") and spec.task not in mediums:
-                mediums[spec.task] = train_medium(spec.task, Path(work or scratch) / f"{spec.task}-medium")
+                mediums[spec.task] = train_medium(spec.task, Path(work or scratch) / f"{spec.task}-medium",
+                                                  env_id=spec.env_id)
             dataset = build(name, episodes, out, runs, work, expert=experts[spec.task], scores=scores[spec.task],
                             medium=mediums.get(spec.task))
             rows.append(_row(dataset, time.perf_counter() - started))

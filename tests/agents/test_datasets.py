@@ -67,6 +67,19 @@ def test_the_random_tier_needs_no_published_runs_and_the_expert_tier_says_how_to
     assert len(err.splitlines()) == 1 and "SCARA_GYM_PUBLISHED_RUNS=CLONE/results/runs" in err
 
 
+def test_a_latest_version_dataset_is_built_on_the_protocols_id_and_replays_bit_for_bit(minari_folder):
+    """-v1 datasets: built and replayed on Scara-C11-v2 (the protocol's id), from their own seeds."""
+    from scara_gym.benchmark.protocol import ENV_ID
+
+    dataset = datasets.build("scara/c11/random-v1", episodes=2, expert=EXPERT, scores=(0.0, 1.0), verbose=False)
+    assert datasets.environment(dataset).spec.id == ENV_ID == "Scara-C11-v2"
+    assert json.loads(dataset.storage.metadata["description"])["env_id"] == ENV_ID
+    assert datasets.replay(dataset) == 2
+    seeds = [m["seed"] for m in dataset.storage.get_episode_metadata(range(2))]
+    assert seeds == [datasets.DATASETS["scara/c11/random-v1"].seed + i for i in range(2)]
+    assert seeds[0] != datasets.DATASETS["scara/c11/random-v0"].seed
+
+
 def test_a_replay_notices_a_changed_action(minari_folder):
     dataset = datasets.build("scara/random-targets/random-v0", episodes=2, expert=EXPERT, scores=(0.0, 1.0),
                              verbose=False)
@@ -92,7 +105,9 @@ def test_every_dataset_seed_is_a_training_seed_and_the_bands_do_not_overlap():
     bands.sort()
     assert all(a_end <= b_start for (_, a_end), (b_start, _) in zip(bands, bands[1:]))
     assert bands[-1][1] <= TRAINING_SEED_LIMIT <= TUNING_SEED
-    assert sorted(datasets.DATASETS) == sorted(f"scara/{t}/{tier}-v0" for t in datasets.TASKS for tier in datasets.TIERS)
+    assert sorted(datasets.DATASETS) == sorted(f"scara/{t}/{tier}-{v}" for t in datasets.TASKS for tier in datasets.TIERS
+                                               for v in ("v0", "v1"))
+    assert {s.env_id for s in datasets.DATASETS.values() if s.version == "v1"} == {"Scara-C11-v2"}
 
 
 def test_the_mixed_tier_alternates_the_expert_and_random_actions(minari_folder):
