@@ -286,7 +286,7 @@ def _train(config: Config, resume: bool, hooks: list[Hook] | None) -> dict:
     envs = make_env(config)
     # the CUDA env on numba's simulator returns CPU tensors: train where its tensors are
     device = getattr(envs.unwrapped, "device", torch.device(config.device))
-    mapping = residual_setpoint(envs.unwrapped, config.residual_scale, config.residual_deadzone)
+    mapping = residual_setpoint(envs.unwrapped, config.residual_scale, config.residual_deadzone, config.residual_on)
     if mapping is not None and device.type != "cpu":
         raise UserError("residual_scale: the residual set-point maps numpy observations; train on device='cpu'")
     hooks = hooks_for(config, envs, mapping) if hooks is None else list(hooks)
@@ -579,7 +579,8 @@ class TorchPPOPolicy:
         self.agent = Agent(saved["obs_size"], saved["action_size"], saved["hidden_size"], saved["clip_obs"])
         self.agent.load_state_dict(saved["state_dict"])
         self.agent.eval()
-        self.mapping = residual_setpoint(unwrapped, run_config.residual_scale, run_config.residual_deadzone)
+        self.mapping = residual_setpoint(unwrapped, run_config.residual_scale, run_config.residual_deadzone,
+                                         run_config.residual_on)
         # a run trained behind the shield acts behind it (its model: the nominal parameters)
         self.shield = Shield(env, None) if run_config.shield else None
         self.name = f"torch-ppo ({run_dir.name})"

@@ -12,6 +12,7 @@ from scara_gym.envs.task import MAX_ROBOTS
 from scara_gym.model import checks
 from scara_gym.model.checks import UserError, UserTypeError
 from scara_gym.registration import ENV_IDS
+from scara_gym.wrappers.residual import RESIDUAL_ON
 
 INF = float("inf")
 SEED_MAX = 2**32 - 1
@@ -31,6 +32,7 @@ class Config:
     reward_weights: dict[str, float] = field(default_factory=dict)  # env reward weights to change (none: the env's)
     residual_scale: tuple[float, float, float] | None = None  # act through a residual set-point around the target
     residual_deadzone: float = 0.2  # (scara_gym.wrappers.residual: an engineered agent, not plain PPO)
+    residual_on: str = "setpoint"  # the residual's base: "setpoint" (around the target) or "pd" (the PD law's voltages)
     device: str = "cpu"            # where the env runs and the agent trains: "cpu" or "cuda"
     seed: int = 0
     num_envs: int = 16
@@ -77,6 +79,9 @@ class Config:
         checks.choice("env_id", self.env_id, ENV_IDS)
         checks.choice("control_mode", self.control_mode, ("pd", "voltage"))
         checks.choice("device", self.device, ("cpu", "cuda"))
+        checks.choice("residual_on", self.residual_on, RESIDUAL_ON)
+        if self.residual_on == "pd" and self.control_mode != "voltage":
+            raise UserError("residual_on='pd' corrects the PD law's voltages: it needs control_mode='voltage'")
         for name in ("randomize_target", "randomize_start", "anneal_lr", "normalize_reward", "compile", "shield"):
             checks.flag(name, getattr(self, name))
         if self.randomize_params is not None:

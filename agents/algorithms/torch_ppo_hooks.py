@@ -127,8 +127,8 @@ class DemoCloning(Hook):
         if config.demo_bc < 0 or not 0.0 < config.demo_bc_decay <= 1.0 or config.demo_bc_pretrain < 0:
             raise ValueError(f"demo_bc must be >= 0, demo_bc_decay in (0, 1], demo_bc_pretrain >= 0; got "
                              f"{config.demo_bc!r}, {config.demo_bc_decay!r}, {config.demo_bc_pretrain!r}")
-        if (mapping is None or config.control_mode != "voltage" or config.randomize_target or config.randomize_params
-                or config.device != "cpu"):
+        if (mapping is None or config.residual_on != "setpoint" or config.control_mode != "voltage"
+                or config.randomize_target or config.randomize_params or config.device != "cpu"):
             raise ValueError("demo_bc: the demonstration is the C11 target's voltages with the nominal parameters, "
                              "in the residual set-point's outputs; use it with control_mode='voltage' and "
                              "residual_scale, without randomize_target and randomize_params, on the CPU")

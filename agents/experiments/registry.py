@@ -18,7 +18,8 @@ from scara_gym.model.checks import UserError
 TAGS = {
     "standard": "a standard algorithm on the environment as users get it (its own reward and actions)",
     "engineered": "an engineered agent: a shaped training reward and/or a residual set-point",
-    "residual": "acts through scara_gym.wrappers.ResidualSetpoint (a set-point around the target)",
+    "residual": "acts through a residual map of scara_gym.wrappers.residual (a set-point around the target, or a "
+                "correction of the PD law's voltages)",
     "random-targets": "trained for targets drawn per episode",
     "domain-randomized": "trained with physics and wall drawn per episode (the robustness target's agents)",
     "energy-aware": "an energy cost in its training reward",
@@ -31,6 +32,8 @@ TAGS = {
     "offline": "learns from an offline dataset (agents.experiments.datasets) without acting in the env: its own kind",
     "learning-curve": "trained to a large budget with checkpoints along the way: scara-agents learning-curve scores them",
     "pilot": "a pilot, not a baseline: trained and logged (docs/experiments.md), left out of the comparison's tables",
+    "interface-ablation": "one of three runs that differ only in the action interface (absolute set-point, "
+                          "set-point relative to the target, residual on the PD law's voltages)",
     "constrained": "PPO-Lagrangian: the episode's collision cost held to cost_limit by a multiplier learned beside "
                    "the policy (agents.algorithms.torch_ppo_hooks.Lagrangian)",
 }
@@ -102,6 +105,26 @@ def _learning_curve_runs(algo: str, label: str, budget: str) -> list[RunSpec]:
             for condition, (note, tag) in CURVE_DRAWS.items()]
 
 
+INTERFACES = {
+    "absolute": ("the env's own set-point action (pd mode)", {}),
+    "relative": ("a set-point relative to the target, target + (2.5 rad, 2.5 rad, 0.05 m) x r, no dead zone",
+                 {"residual_scale": (2.5, 2.5, 0.05), "residual_deadzone": 0.0}),
+    "residual-pd": ("the PD law's voltages towards the target + 0.5 x r (residual policy learning; train with "
+                    "--control-mode voltage)", {"residual_scale": (0.5, 0.5, 0.5), "residual_on": "pd"}),
+}
+"""the interface ablation (issue 58 item 6): interface -> (what the agent's action is, its Config fields)"""
+
+
+def _interface_ablation() -> list[RunSpec]:
+    """The single-file PPO on the c11-starts draws with the env's own reward, 1M steps, once per
+    interface of INTERFACES: all else equal."""
+    return [RunSpec(f"torch-ppo-interface-{name}", "torch-ppo", f"interface ablation: {note}; the single-file PPO "
+                    "with its defaults on starts drawn from the start region, the env's reward, 1M steps",
+                    fields={"randomize_start": True, **fields},
+                    tags=frozenset({"interface-ablation", "perturbed-starts"} | ({"residual"} if fields else set())))
+            for name, (note, fields) in INTERFACES.items()]
+
+
 def _runs(*specs: RunSpec) -> dict[str, RunSpec]:
     return {spec.name: spec for spec in specs}
 
@@ -126,6 +149,7 @@ RUNS = _runs(
     RunSpec("torch-ppo-lagrangian", "torch-ppo", "the single-file PPO with its defaults, constrained: "
             "PPO-Lagrangian on the collision cost, at most 0 per episode",
             fields={"cost_limit": 0.0}, tags=frozenset({"standard", "constrained"})),
+    *_interface_ablation(),
     RunSpec("torch-ppo-dr", "torch-ppo", "the single-file PPO with physics and wall drawn per episode, 3M steps",
             fields={"randomize_params": "all", "total_timesteps": 3_000_000},
             tags=frozenset({"standard", "domain-randomized"})),

@@ -9,6 +9,7 @@
 
 from scara_gym.wrappers.residual import (
     ResidualAction,
+    ResidualOnPD,
     ResidualSetpoint,
     ResidualVectorAction,
     residual_action,
@@ -16,5 +17,5 @@ from scara_gym.wrappers.residual import (
 )
 from scara_gym.wrappers.shield import Shield, hold_and_climb
 
-__all__ = ["ResidualAction", "ResidualSetpoint", "ResidualVectorAction", "Shield", "hold_and_climb",
+__all__ = ["ResidualAction", "ResidualOnPD", "ResidualSetpoint", "ResidualVectorAction", "Shield", "hold_and_climb",
            "residual_action", "residual_setpoint"]

@@ -157,8 +157,48 @@ def residual_action(env, residual_scale, deadzone: float = 0.0):
     return ResidualAction(env, residual_scale, deadzone)
 
 
-def residual_setpoint(env, residual_scale, deadzone: float = 0.0) -> ResidualSetpoint | None:
-    """The map a run's settings ask for: a ResidualSetpoint, or None where ``residual_scale`` is
-    None (the run acts in the env's own actions). Trainers and policies build it here alike.
+class ResidualOnPD:
+    """Residual policy learning on the C11 PD law (Johannink et al. 2019, Silver et al. 2018), in
+    "voltage" mode: the action is the PD law's voltage towards the target (read from the
+    observation) plus residual_scale x r, clipped to [-1, 1]. r = 0 is PD itself; the agent
+    learns a correction of its voltages, not a set-point.
+
+    Args:
+        env: a "voltage"-mode environment (its unwrapped env's ``pd_action`` gives the PD law's voltages).
+        residual_scale (sequence of 3 floats): the largest correction per axis, in the action's
+            units (1 = the voltage limit), each >= 0.
     """
-    return None if residual_scale is None else ResidualSetpoint(env, residual_scale, deadzone)
+
+    def __init__(self, env: gym.Env, residual_scale) -> None:
+        scale = np.asarray(residual_scale, dtype=float)
+        if scale.shape != (3,) or not np.all(np.isfinite(scale)) or np.any(scale < 0):
+            raise ValueError(f"residual_scale must be 3 finite numbers >= 0 [action units], got {residual_scale!r}")
+        self.env = env.unwrapped
+        if self.env.control_mode != "voltage":
+            raise ValueError(f"the residual on PD corrects voltages: it needs control_mode='voltage', the env is in "
+                             f"{self.env.control_mode!r} mode")
+        self.scale = scale
+
+    def __call__(self, obs: np.ndarray, r: np.ndarray) -> np.ndarray:
+        """The voltage actions of residual actions r in [-1, 1] on observations (batched or one)."""
+        obs = np.atleast_2d(np.asarray(obs, dtype=float))
+        r = np.clip(np.atleast_2d(np.asarray(r, dtype=float)), -1.0, 1.0)
+        target = obs[:, Q] + obs[:, TARGET_ERROR]
+        return np.clip(self.env.pd_action(obs, target) + self.scale * r, -1.0, 1.0)
+
+
+RESIDUAL_ON = ("setpoint", "pd")
+"""what a residual acts on: the set-point around the target (ResidualSetpoint), or the PD law's
+voltages (ResidualOnPD)"""
+
+
+def residual_setpoint(env, residual_scale, deadzone: float = 0.0, on: str = "setpoint"):
+    """The map a run's settings ask for: a ResidualSetpoint (``on`` "setpoint") or a ResidualOnPD
+    (``on`` "pd", no dead zone), or None where ``residual_scale`` is None (the run acts in the
+    env's own actions). Trainers and policies build it here alike.
+    """
+    if on not in RESIDUAL_ON:
+        raise ValueError(f"residual_on must be one of {RESIDUAL_ON}, got {on!r}")
+    if residual_scale is None:
+        return None
+    return ResidualSetpoint(env, residual_scale, deadzone) if on == "setpoint" else ResidualOnPD(env, residual_scale)

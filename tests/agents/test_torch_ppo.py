@@ -198,6 +198,25 @@ def test_the_residual_set_point_option_acts_around_the_target_in_training_and_ev
     assert legacy.init_from is None
 
 
+def test_the_residual_on_pd_trains_and_acts_on_the_pd_laws_voltages(tmp_path):
+    """residual_on='pd' (the interface ablation's third interface): trained and evaluated through
+    ResidualOnPD in "voltage" mode; refused in "pd" mode before anything trains."""
+    from agents.algorithms.torch_ppo import TorchPPOPolicy
+    from scara_gym.wrappers import ResidualOnPD
+
+    out = tmp_path / "run"
+    train(Config(num_envs=2, num_steps=8, num_minibatches=1, update_epochs=1, total_timesteps=16,
+                 control_mode="voltage", residual_scale=(0.5, 0.5, 0.5), residual_on="pd", out=str(out)))
+    env = gym.make("Scara-C11-v2", control_mode="voltage")
+    obs, _ = env.reset(seed=3)
+    policy = TorchPPOPolicy(env, out)
+    with torch.no_grad():
+        mean = policy.agent.heads(policy.agent.normalize(torch.as_tensor(obs)[None]))[0][0].clamp(-1, 1).numpy()
+    assert np.array_equal(policy(obs), ResidualOnPD(env, (0.5, 0.5, 0.5))(obs, mean.astype(np.float64))[0])
+    with pytest.raises(ValueError, match="residual_on='pd' corrects the PD law's voltages"):
+        Config(residual_scale=(0.5, 0.5, 0.5), residual_on="pd")
+
+
 def test_demo_resets_start_episodes_on_the_reference_path_and_training_uses_them(tmp_path):
     config = Config(num_envs=8, demo_resets=1.0)
     envs = make_env(config)

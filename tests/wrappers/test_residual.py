@@ -8,6 +8,7 @@ import scara_gym  # noqa: F401
 from scara_gym.envs.vector import ScaraVectorEnv
 from scara_gym.wrappers import (
     ResidualAction,
+    ResidualOnPD,
     ResidualSetpoint,
     ResidualVectorAction,
     residual_action,
@@ -83,3 +84,19 @@ def test_sb3s_adapter_acts_through_the_wrapper_as_the_map_would():
         obs, reward, dones, _ = wrapped.step(r)
         expected, reward2, dones2, _ = plain.step(mapping(expected, r))
         assert np.array_equal(obs, expected) and np.array_equal(reward, reward2) and np.array_equal(dones, dones2)
+
+
+def test_the_residual_on_pd_is_the_pd_laws_voltage_plus_the_scaled_correction():
+    env = gym.make("Scara-C11-v2", control_mode="voltage")
+    obs, info = env.reset(seed=2)
+    on_pd = residual_setpoint(env, (0.5, 0.25, 0.0), on="pd")
+    assert isinstance(on_pd, ResidualOnPD)
+    pd = env.unwrapped.pd_action(obs, info["target"])
+    np.testing.assert_allclose(on_pd(obs, np.zeros(3))[0], pd, atol=1e-6)  # r = 0: PD itself (float32 obs)
+    moved = on_pd(obs, np.array([1.0, -1.0, 1.0]))[0]
+    np.testing.assert_allclose(moved, np.clip(on_pd(obs, np.zeros(3))[0] + [0.5, -0.25, 0.0], -1, 1))
+    assert np.all(np.abs(on_pd(obs, np.full(3, 5.0))) <= 1.0)  # r clipped to [-1, 1], the action too
+    with pytest.raises(ValueError, match="needs control_mode='voltage'"):
+        residual_setpoint(gym.make("Scara-C11-v2"), (0.5, 0.5, 0.5), on="pd")
+    with pytest.raises(ValueError, match="residual_on must be one of"):
+        residual_setpoint(env, (0.5, 0.5, 0.5), on="torque")
