@@ -9,7 +9,7 @@ import numpy as np
 
 from agents.experiments.entries import row_of
 from agents.experiments.evaluation import COLUMNS, DECISION_EPISODES
-from agents.experiments.statistics import interval_estimates, rate_text
+from agents.experiments.statistics import episodes_of, interval_estimates, rate_claim, rate_text
 from agents.experiments.targets import target_checks
 from scara_gym import DEFAULT_PARAMS
 from scara_gym.benchmark.episodes import BAND_NAMES
@@ -132,7 +132,8 @@ def _rank(e: dict) -> tuple:
 
 def _verdict_cell(e: dict) -> str:
     return (f"{e['name']}: {rate_text(e['success_rate'])} / {rate_text(e['collision_rate'])}, "
-            f"{e['time_iqm']:.3f} s, {e['energy_mean']:.0f} J")
+            f"{e['time_iqm']:.3f} s, {e['energy_mean']:.0f} J; collisions "
+            f"{rate_claim(e['collision_rate'], episodes_of(e))}")
 
 
 def verdicts(entries: list[dict]) -> str:
@@ -140,7 +141,8 @@ def verdicts(entries: list[dict]) -> str:
     _rank: clean first, then collisions, success, time), which wins by how much, and the best
     policy behind a shield."""
     lines = ["#### Verdicts: the best classical and the best learned policy without a shield, per condition "
-             "(success / collisions, time IQM, energy), and the best behind a shield", "",
+             "(success / collisions, time IQM, energy; the episodes with a collision of all its episodes, with "
+             "their 95 % Clopper-Pearson interval, seeds pooled), and the best behind a shield", "",
              "| condition | best classical | best learned | verdict | best behind a shield |", "|---|---|---|---|---|"]
     for name in dict.fromkeys(e["condition"] for e in entries):
         here = [e for e in entries if e["condition"] == name]
@@ -216,8 +218,8 @@ def condition_tables(entries: list[dict]) -> str:
         here = [e for e in entries if e["condition"] == name]
         lines += [f"#### {name}: {description}", "", _caption(here), "",
                   "| policy | kind | mode | seeds | episodes | success | collisions | time to target, IQM [95 % CI] (s) "
-                  "| energy (J) | P(faster than heuristic) | decision, median / p95 (us) |",
-                  "|---|---|---|---|---|---|---|---|---|---|---|"]
+                  "| energy (J) | P(faster than heuristic) | decision, median / p95 (us) | episodes with a collision |",
+                  "|---|---|---|---|---|---|---|---|---|---|---|---|"]
         for e in here:
             seeds = "-" if e["seeds"] is None else ",".join(map(str, e["seeds"]))
             p = e.get("probability_faster_than_heuristic")
@@ -225,7 +227,7 @@ def condition_tables(entries: list[dict]) -> str:
             lines.append(f"| {e['name']} | {e['kind']} | {e['control_mode']} | {seeds} | {e['episodes']} | "
                          f"{rate_text(e['success_rate'])} | {rate_text(e['collision_rate'])} | {e['time_iqm']:.4f} "
                          f"[{e['time_ci'][0]:.4f}, {e['time_ci'][1]:.4f}] | {e['energy_mean']:.1f} | {p_text} | "
-                         f"{_decision_cell(e)} |")
+                         f"{_decision_cell(e)} | {rate_claim(e['collision_rate'], episodes_of(e))} |")
         for e in (e for e in entries if e["condition"] == name and e.get("solve_time")):
             t = e["solve_time"]
             lines += ["", f"{e['name']}: solve time per control step median {1e3 * t['median']:.1f} ms, 95th percentile "

@@ -165,6 +165,33 @@ def _band_figures(run: dict) -> dict:
     return out
 
 
+def rate_interval(rate: float, n: int, confidence: float = 0.95) -> tuple[float, float]:
+    """The Clopper-Pearson interval of a rate observed as ``rate`` over ``n`` episodes (exact for
+    a binomial count: 0 in 150 gives [0, 0.0243], "at most 2.4 %")."""
+    from scipy.stats import beta
+
+    k = int(round(rate * n))
+    tail = (1.0 - confidence) / 2.0
+    low = 0.0 if k == 0 else float(beta.ppf(tail, k, n - k + 1))
+    high = 1.0 if k == n else float(beta.ppf(1.0 - tail, k + 1, n - k))
+    return low, high
+
+
+def episodes_of(e: dict) -> int:
+    """The episodes an entry's rates count: its episodes per seed times its seeds (one for a classical policy)."""
+    return int(e["episodes"]) * max(1, len(e.get("seeds") or ()))
+
+
+def rate_claim(rate: float, n: int) -> str:
+    """A rate published from n episodes with its 95 % interval: "0 of 150 (at most 2.4 %)" or
+    "3 of 150 (2.0 %, 95 % CI 0.4-5.7 %)"."""
+    k = int(round(rate * n))
+    low, high = rate_interval(rate, n)
+    if k == 0:
+        return f"0 of {n} (at most {100 * high:.1f} %)"
+    return f"{k} of {n} ({100 * rate:.1f} %, 95 % CI {100 * low:.1f}-{100 * high:.1f} %)"
+
+
 def rate_text(rate: float) -> str:
     """A success or collision rate with two decimals, or three where two would round it to
     another value (0.998 is not 1.00: 1 collision in 500 episodes must show)."""

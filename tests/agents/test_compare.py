@@ -190,7 +190,7 @@ def _entry(condition, kind, algorithm=None, success=1.0, collisions=0.0, time=1.
            train_seconds=600.0, mode="pd"):
     e = {"name": algorithm or kind, "kind": kind, "algorithm": algorithm, "condition": condition, "control_mode": mode,
          "success_rate": success, "collision_rate": collisions, "time_iqm": time, "energy_mean": energy,
-         "run": algorithm, "shielded": False,
+         "run": algorithm, "shielded": False, "episodes": 30, "seeds": seeds,
          "tags": sorted(registry.RUNS[algorithm].tags) if algorithm in registry.RUNS else []}
     if seeds:
         e["per_seed"] = [{"seed": s, "success_rate": success, "collision_rate": collisions,
@@ -350,7 +350,8 @@ def test_verdicts_name_the_best_classical_and_learned_policy_and_the_winner():
     assert rows[0].startswith("| c11-starts | dec-continue, tuned: 1.00 / 0.00, 1.600 s") and "| ppo: 1.00 / 0.00" in rows[0]
     assert rows[0].endswith("| learned wins: 0.200 s faster | - |")
     assert rows[1].startswith("| delay-1 | dec-continue, tuned:") and "learned wins: collisions 0.50 vs 0.80" in rows[1]
-    assert rows[1].endswith("| pd + shield: 1.00 / 0.00, 1.500 s, 70 J |")  # shielded entries apart
+    assert rows[1].endswith("| pd + shield: 1.00 / 0.00, 1.500 s, 70 J; collisions 0 of 30 (at most 11.6 %) |")
+    assert "| ppo: 0.50 / 0.50, 1.500 s, 70 J; collisions 15 of 30 (50.0 %, 95 % CI 31.3-68.7 %)" in rows[1]
 
 
 def test_robustness_curves_run_every_policy_at_every_point(tmp_path, monkeypatch):
@@ -570,3 +571,16 @@ def test_the_intervals_are_the_same_for_the_same_scores_and_leave_numpys_generat
     assert statistics.iqm_with_ci(scores, reps=300, seed=1)[1] != first[1]  # the seed is the bootstrap's
     x, y = np.random.default_rng(1).uniform(size=(3, 20)), np.random.default_rng(2).uniform(size=(2, 20))
     assert statistics.probability_faster(x, y, reps=200) == statistics.probability_faster(x, y, reps=200)
+
+
+def test_a_rate_is_claimed_with_its_exact_interval():
+    """0 collisions in 150 episodes is "at most 2.4 %", never "never" (Clopper-Pearson, 95 %)."""
+    assert statistics.rate_claim(0.0, 150) == "0 of 150 (at most 2.4 %)"
+    low, high = statistics.rate_interval(3 / 150, 150)
+    from scipy.stats import binom
+
+    assert binom.sf(2, 150, low) == pytest.approx(0.025, abs=1e-9)  # P(X >= 3 | low) = 2.5 %
+    assert binom.cdf(3, 150, high) == pytest.approx(0.025, abs=1e-9)  # P(X <= 3 | high) = 2.5 %
+    assert statistics.rate_interval(1.0, 30)[1] == 1.0 and statistics.rate_interval(0.0, 30)[0] == 0.0
+    assert statistics.episodes_of({"episodes": 30, "seeds": [0, 1, 2, 3, 4]}) == 150
+    assert statistics.episodes_of({"episodes": 30, "seeds": None}) == 30
