@@ -493,7 +493,7 @@ def _curves(args, argv) -> dict:
     merged = _merged("--merge", args.merge, args.only, "curves.json", ("episodes", "curves"))
     require("rliable")  # the curves' intervals, computed after the episodes: said before them
     if merged:
-        data = merge_curves(merged, args.only)
+        data = merge_curves(merged, args.only, cache=args.cache)
         data.setdefault("refreshed_by", {}).update({kind: "scara-agents " + " ".join(argv) for kind in args.only})
     else:
         data = robustness_curves(args.runs, args.episodes, cache=args.cache, robust_shield=args.robust_shield)

@@ -12,16 +12,15 @@ from pathlib import Path
 
 import numpy as np
 
-from agents.experiments.comparison import ROBUST_LABEL, robust_shield_pd
-from agents.experiments.evaluation import learned_episodes, learned_runs
+from agents.experiments.comparison import CLASSICAL_SOURCES, ROBUST_LABEL, robust_shield_pd, shield_pd
+from agents.experiments.evaluation import cached_evaluation, condition_description, learned_episodes, learned_runs
 from agents.experiments.report import curve_figure
 from agents.experiments.statistics import iqm_with_ci, time_scores
 from agents.experiments.tuning import tune_heuristic
 from agents.files import write_json
-from agents.policies import DecHeuristic, PDPolicy
-from scara_gym.benchmark.protocol import evaluate, noise_condition, shift_condition
+from agents.policies import DecHeuristic
+from scara_gym.benchmark.protocol import ENV_ID, evaluate, noise_condition, shift_condition
 from scara_gym.model.checks import UserError
-from scara_gym.wrappers import Shield
 
 CURVES = {
     "load mass": ("arm.load_mass", (1.0, 1.5, 2.0, 2.5, 3.0)),
@@ -46,7 +45,7 @@ def robustness_curves(runs_root: Path | None, episodes: int = 20, learned: tuple
     its tuned distance and with the margin, and the ``learned`` runs found under ``runs_root``."""
     tuned = tune_heuristic("continue")
     classical = {
-        "pd + shield": lambda env: Shield(env, PDPolicy(env)),
+        "pd + shield": shield_pd,
         f"dec-continue, tuned (d={tuned['distance']:.4f} m)":
             lambda env: DecHeuristic(env, "continue", critical_distance=tuned["distance"]),
         f"dec-continue, margin (d={tuned['margin_distance']:.4f} m)":
@@ -55,7 +54,7 @@ def robustness_curves(runs_root: Path | None, episodes: int = 20, learned: tuple
     if robust_shield:
         classical[ROBUST_LABEL] = robust_shield_pd
     groups = {k: v for k, v in (learned_runs(runs_root) if runs_root else {}).items() if k[0] in learned}
-    return {"episodes": episodes, "curves": curve_points(classical, groups, episodes, cache, verbose),
+    return {"env_id": ENV_ID, "episodes": episodes, "curves": curve_points(classical, groups, episodes, cache, verbose),
             "heuristic": tuned}
 
 
@@ -63,13 +62,13 @@ ONLY_CURVES = {"robust-shield": (ROBUST_LABEL, robust_shield_pd)}
 """the policies ``curves --only`` evaluates alone: kind -> (label, factory of the env)"""
 
 
-def merge_curves(published: dict, kinds, verbose: bool = True) -> dict:
+def merge_curves(published: dict, kinds, verbose: bool = True, cache: Path | None = None) -> dict:
     """``published`` curves (curves.json's record) with the points of ``kinds`` (ONLY_CURVES)
     evaluated by the curves' own loop (curve_points: the same conditions, and the published
     episode count) and put in, replacing theirs; every other policy's points are kept as
     published. UserError where the published factors are not today's."""
     classical = {ONLY_CURVES[k][0]: ONLY_CURVES[k][1] for k in kinds}
-    fresh = curve_points(classical, {}, published["episodes"], verbose=verbose)
+    fresh = curve_points(classical, {}, published["episodes"], verbose=verbose, cache=cache)
     data = {**published, "curves": {k: {**v, "policies": dict(v["policies"])} for k, v in published["curves"].items()}}
     for curve, points in fresh.items():
         if curve not in data["curves"] or points["factors"] != data["curves"][curve]["factors"]:
@@ -91,7 +90,7 @@ def curve_points(classical: dict, groups: dict, episodes: int, cache: Path | Non
         policies: dict[str, dict] = {}
         for factor in factors:
             condition = point_condition(curve, factor)
-            results = {label: [evaluate(condition, factory, "pd", episodes)] for label, factory in classical.items()}
+            results = {label: [_classical(label, factory, condition, episodes, cache)] for label, factory in classical.items()}
             for (algorithm, mode), run_dirs in sorted(groups.items()):
                 results[algorithm] = [learned_episodes(d, condition, mode, episodes, cache) for d in run_dirs]
             for label, runs in results.items():
@@ -104,6 +103,20 @@ def curve_points(classical: dict, groups: dict, episodes: int, cache: Path | Non
                           f"{row['collisions'][-1]:.2f}, time IQM {row['time_iqm'][-1]:.3f} s", flush=True)
         out[curve] = {"factors": list(factors), "policies": policies}
     return out
+
+
+def _classical(label: str, factory, condition, episodes: int, cache: Path | None) -> dict:
+    """A classical policy's episodes at a curve's point, from ``cache`` where it keeps them (the
+    comparison's cached_evaluation: the policies' and the shield's source, the label, which names
+    the heuristic's distance, and the point's condition and seeds), so that a stopped run of the
+    curves goes on where it stopped."""
+    def run() -> dict:
+        result = evaluate(condition, factory, "pd", episodes)
+        result.pop("condition")
+        return result
+
+    return cached_evaluation(cache, "curve", CLASSICAL_SOURCES, [label, "pd", *condition_description(condition, episodes)],
+                             run)
 
 
 def write_curves(data: dict, out: Path) -> list[Path]:

@@ -178,7 +178,8 @@ def curve_figure(data: dict, path: Path) -> Path:
         axes[1, column].set(xlabel="x nominal" if curve != "sensor noise" else "x sensor-noise's levels",
                             ylabel="time to target, IQM [s] (3 s: not reached)")
     axes[0, 0].legend(fontsize=7)
-    fig.suptitle(f"Robustness: {data['episodes']} episodes per point and seed, from the protocol's starts")
+    on = f" on {data['env_id']}" if "env_id" in data else ""
+    fig.suptitle(f"Robustness{on}: {data['episodes']} episodes per point and seed, from the protocol's starts")
     written: list[Path] = []
     _save(fig, path, written)
     return path

@@ -370,6 +370,23 @@ def test_robustness_curves_run_every_policy_at_every_point(tmp_path, monkeypatch
     assert shield["success"][0] == 1.0 and shield["collisions"][0] == 0.0  # nominal: the shield's own model
     written = curves.write_curves(data, tmp_path)
     assert all(p.exists() for p in written) and json.loads((tmp_path / "curves.json").read_text())["episodes"] == 2
+    assert data["env_id"] == LATEST_ENV_ID
+
+
+def test_the_curves_classical_points_come_back_from_the_cache(tmp_path, monkeypatch):
+    """A stopped run of the curves goes on where it stopped: every classical point is kept."""
+    from agents.experiments import curves
+
+    monkeypatch.setattr(curves, "CURVES", {"load mass": ("arm.load_mass", (1.0, 2.0))})
+    shielded = {"pd + shield": curves.shield_pd}
+    first = curves.curve_points(shielded, {}, 1, cache=tmp_path, verbose=False)
+    assert len(list(tmp_path.glob("curve-*.npz"))) == 2
+
+    def must_not_run(*args, **kwargs):
+        raise AssertionError("evaluated again")
+
+    monkeypatch.setattr(curves, "evaluate", must_not_run)
+    assert curves.curve_points(shielded, {}, 1, cache=tmp_path, verbose=False) == first
 
 
 def test_the_readme_headline_table_is_the_published_comparisons_overview():
