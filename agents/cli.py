@@ -667,9 +667,10 @@ def _add_datasets(sub) -> None:
                        description="Build the offline datasets (agents.experiments.datasets: scara/<task>/<tier>-vN, "
                                    "-v0 on Scara-C11-v1, -v1 on Scara-C11-v2) into Minari's data folder "
                                    "(MINARI_DATASETS_PATH, else ~/.minari/datasets) or --out; 'list' names them, "
-                                   "'build all' builds every one of --version.")
-    p.add_argument("action", choices=("build", "list"))
-    p.add_argument("name", nargs="?", help="a dataset id (scara-agents datasets list), or 'all'")
+                                   "'build all' builds every one of --version (keeping those built before), "
+                                   "'replay' steps a built dataset's actions again and checks every bit.")
+    p.add_argument("action", choices=("build", "list", "replay"))
+    p.add_argument("name", nargs="?", help="a dataset id (scara-agents datasets list), or 'all' with build")
     p.add_argument("--episodes", type=int, help="episodes per dataset (default: its own count; medium-replay: "
                                                 "all the medium run's training episodes)")
     p.add_argument("--out", type=_folder, help="the datasets' folder (default: Minari's)")
@@ -679,6 +680,9 @@ def _add_datasets(sub) -> None:
     p.add_argument("--summary", type=_file, help="with 'all': write the datasets' sizes and build times here (JSON)")
     p.add_argument("--version", choices=tuple(datasets.DATASET_VERSIONS), default=datasets.LATEST_DATASET_VERSION,
                    help="with 'all': the datasets' version (default: the latest, on the protocol's id)")
+    p.add_argument("--tiers", nargs="+", choices=(*datasets.TIERS, datasets.ORACLE_TIER), default=None,
+                   help="with 'all': only these tiers (default: every one)")
+    p.add_argument("--jobs", type=int, default=1, help="worker processes for the oracle tier's episodes (default 1)")
     p.set_defaults(handler=_datasets)
 
 
@@ -688,12 +692,22 @@ def _datasets(args, argv):
             print(f"{name}  ({spec.episodes} episodes)")
         return list(datasets.DATASETS)
     if not args.name:
-        raise UserError("datasets build needs a dataset id or 'all' (scara-agents datasets list names them)")
+        raise UserError(f"datasets {args.action} needs a dataset id{' or all' if args.action == 'build' else ''} "
+                        "(scara-agents datasets list names them)")
     _positive("--episodes", args.episodes)
+    _positive("--jobs", args.jobs)
     require("minari")
+    if args.action == "replay":
+        datasets.get_dataset(args.name)  # an unknown id: the list of ids
+        if args.out is not None:
+            os.environ["MINARI_DATASETS_PATH"] = str(args.out.resolve())
+        replayed = datasets.replay(datasets.load(args.name), args.episodes)
+        print(f"{args.name}: {replayed} episodes replayed bit for bit")
+        return replayed
     if args.name == "all":
-        return datasets.build_all(args.episodes, args.out, args.runs, summary=args.summary, version=args.version)
-    return datasets.build(args.name, args.episodes, args.out, args.runs)
+        return datasets.build_all(args.episodes, args.out, args.runs, summary=args.summary, version=args.version,
+                                  tiers=args.tiers, jobs=args.jobs)
+    return datasets.build(args.name, args.episodes, args.out, args.runs, jobs=args.jobs)
 
 
 class _Parser(argparse.ArgumentParser):

@@ -151,8 +151,7 @@ def compare(runs_root: Path | None = Path("runs/baselines"), conditions: list[st
     for name in conditions:
         started = time.perf_counter()
         count = episodes.get(name) if isinstance(episodes, dict) else episodes
-        table = _ConditionTable(get_condition(name), count, verbose, cache)
-        table.mpc_latency_rows = mpc_latency
+        table = _ConditionTable(get_condition(name), count, verbose, cache, mpc_latency)
         if only:
             table.only(only, heuristics, groups, shielded)
         else:
@@ -187,7 +186,7 @@ RTI_ROWS = (
 class _ConditionTable:
     """The entries and first-episode traces of one condition, as they are added."""
 
-    def __init__(self, condition, episodes: int | None, verbose: bool, cache=None) -> None:
+    def __init__(self, condition, episodes: int | None, verbose: bool, cache=None, mpc_latency: bool = True) -> None:
         self.condition, self.verbose, self.cache = condition, verbose, cache
         self.episodes = 1 if condition.episodes == 1 else episodes  # the C11 episode is one episode
         self.entries: list[Entry] = []
@@ -195,7 +194,7 @@ class _ConditionTable:
         self.traces: dict = {}
         self.reference = None  # the heuristic learned agents are compared with: dec-continue at its tuned distance
         self.factories: dict[str, tuple] = {}  # label -> (policy factory, control mode): its decisions timed
-        self.mpc_latency_rows = True  # the MPC also under its own latency
+        self.mpc_latency_rows = mpc_latency  # the MPC also under its own latency
 
     def add(self, label, kind, algorithm, mode, runs, seeds, note="", train_seconds=None, shielded=False, tags=(),
             run=None, shield_range=None, factory=None, variant=None, setting=None, added_delay=0) -> Entry:
@@ -300,7 +299,7 @@ class _ConditionTable:
                 if latency:
                     self.mpc_latency(label, kind, mode, result["solve_time"]["p95"], episodes)
 
-    def mpc_latency(self, label: str, kind: str, mode: str, p95: float, episodes=None) -> None:
+    def mpc_latency(self, label: str, kind: str, mode: str, p95: float, episodes) -> None:
         """The MPC as it would act in real time: each of its actions applied ceil(p95 / control
         step) control steps late (on top of the condition's own delay), its 95th-percentile solve
         time in this condition; none where that is 0 steps."""
@@ -310,7 +309,7 @@ class _ConditionTable:
             return
         own = self.condition.env_kwargs.get("action_delay", 0)
         delayed = dataclasses.replace(self.condition, env_kwargs={**self.condition.env_kwargs, "action_delay": own + steps})
-        result = (episodes or mpc_episodes)(delayed, self.episodes, self.cache, mode=mode)
+        result = episodes(delayed, self.episodes, self.cache, mode=mode)
         e = self.add(f"{label}, latency {steps}", kind, None, mode, [result], None, added_delay=steps,
                  note=f"the same controller under its own latency: its 95th-percentile solve time here, {1e3 * p95:.1f} ms, "
                       f"as {steps} control steps of actuation delay ({control_dt * 1e3:g} ms each)"

@@ -18,6 +18,16 @@ network.
 | ``random`` | uniformly random actions in [-1, 1] |
 | ``medium-replay`` | every episode that training run collected, in training order (its rollouts, stochastic actions) |
 | ``mixed`` | the expert and random actions, alternating episode by episode |
+| ``oracle`` | the real-time MPC (``mpc-rti``, agents.policies.mpc_rti): -v1 and later only, `ORACLE_DATASETS` |
+
+The oracle tier is the many-episode expert data of the distillation (docs/agents.md): the
+real-time MPC on the protocol's three training distributions, its tasks ``c11``,
+``random-targets`` and ``random-shifts`` (physics and wall drawn per episode from the protocol's
+"all" ranges; the MPC plans on the nominal model and reads the wall from the observation), and
+per step the time to go (``info["time_to_go"]``: the episode's success time minus the step's
+time, NaN in an episode that does not succeed). A build may share its episodes between worker
+processes (``jobs``): each episode depends on its seed alone (the MPC's warm start is reset
+with the episode), so any number of workers writes the same dataset.
 
 Every seeded episode keeps its reset seed: its actions replayed in
 the dataset's environment (`environment`) from that seed give its observations, rewards and costs bit
@@ -73,8 +83,11 @@ CONTROL_MODE = "pd"
 TASKS = {
     "c11": {"randomize_start": True},
     "random-targets": {"randomize_target": True},
+    "random-shifts": {"randomize_params": "all"},
 }
 """task -> the environment arguments of its datasets (over DATASET_ENV_ID's, "pd" mode)"""
+TIERED_TASKS = ("c11", "random-targets")
+"""the tasks with every tier of TIERS (random-shifts has the oracle tier only)"""
 DATASET_ENV_ID = "Scara-C11-v1"
 """the id the -v0 datasets are built and replayed on (frozen with them)"""
 DATASET_VERSIONS = {"v0": DATASET_ENV_ID, "v1": "Scara-C11-v2"}
@@ -82,7 +95,7 @@ DATASET_VERSIONS = {"v0": DATASET_ENV_ID, "v1": "Scara-C11-v2"}
 version, with its own expert picked on that id"""
 LATEST_DATASET_VERSION = "v1"
 """the version ``datasets build all`` builds: the protocol's id's"""
-TASK_CONDITIONS = {"c11": "c11-starts", "random-targets": "random-targets"}
+TASK_CONDITIONS = {"c11": "c11-starts", "random-targets": "random-targets", "random-shifts": "random-shifts"}
 """task -> the protocol condition whose tuning set picks its expert"""
 TIERS = ("expert", "medium", "random", "medium-replay", "mixed")
 DATASET_SEED = 60_000_000
@@ -117,9 +130,9 @@ PUBLISHED_EXPERTS = {
 """task -> the expert pick_expert picks from the published runs and its reference_scores (random
 actions', the expert's) as this version measures them: what a tier that does not run the expert
 (random, medium, medium-replay) records where the published runs are not at hand
-(tests/agents/test_datasets.py checks them against the runs). The -v0 datasets' published
-scores (docs/results/datasets.json) were measured by an earlier version: the c11 expert's 1.6e-6
-lower."""
+(tests/agents/test_datasets.py checks them against the runs). The expert's score is a float32
+network's closed loop and differs by CPU in its last digits: the -v0 datasets' published c11 score
+(docs/results/datasets.json) is 1.6e-6 lower, as this project's AMD EPYC machines measure it."""
 EXPERT_TIERS = ("expert", "mixed")
 """the tiers whose episodes the expert acts in: they need the published runs"""
 MEDIUM_FIELDS = {
@@ -154,8 +167,20 @@ class DatasetSpec:
         return DATASET_SEED + VERSION_SEED_OFFSET[self.version] + self.index * 10**6
 
 
-DATASETS = {s.name: s for s in (DatasetSpec(task, tier, 1000, k, version) for version in DATASET_VERSIONS
-                                for k, (task, tier) in enumerate((t, tier) for t in TASKS for tier in TIERS))}
+ORACLE_TIER = "oracle"
+ORACLE_EXPERT = "mpc-rti"
+"""the oracle tier's behaviour (a policy spec of agents.algorithms.loaders): the real-time MPC in "pd" mode"""
+ORACLE_EPISODES = {"c11": 2000, "random-targets": 2000, "random-shifts": 2000}
+"""task -> the oracle dataset's default size (6,000 episodes in all)"""
+ORACLE_INDEX = 10
+"""the oracle datasets' seed bands come after the tiered ones' (DatasetSpec.seed: index 10, 11, 12)"""
+ORACLE_VERSIONS = ("v1",)
+"""the versions with an oracle tier (-v0 is frozen as it was published)"""
+ORACLE_DATASETS = tuple(DatasetSpec(task, ORACLE_TIER, count, ORACLE_INDEX + j, version)
+                        for version in ORACLE_VERSIONS for j, (task, count) in enumerate(ORACLE_EPISODES.items()))
+DATASETS = {s.name: s for s in (*(DatasetSpec(task, tier, 1000, k, version) for version in DATASET_VERSIONS
+                                  for k, (task, tier) in enumerate((t, tier) for t in TIERED_TASKS for tier in TIERS)),
+                                *ORACLE_DATASETS)}
 """every dataset of the set by its Minari id"""
 
 
@@ -203,14 +228,15 @@ class Alternating:
         return self.policies[self.episode % len(self.policies)](obs)
 
 
-def episode_buffers(env, policy, seeds) -> list:
+def episode_buffers(env, policy, seeds, time_to_go: bool = False, first_id: int = 0) -> list:
     """One Minari EpisodeBuffer per seed: the policy's episode from ``env.reset(seed=seed)``, with
-    the step infos kept (the reset's row of each holds zeros)."""
+    the step infos kept (the reset's row of each holds zeros); with ``time_to_go``, also each
+    row's time to the episode's success (NaN where it does not succeed). Ids from ``first_id``."""
     require("minari")
     from minari.data_collector import EpisodeBuffer
 
     buffers = []
-    for number, seed in enumerate(seeds):
+    for number, seed in enumerate(seeds, start=first_id):
         obs, _ = env.reset(seed=int(seed))
         policy.reset()
         observations, actions, rewards, terminations, truncations = [obs], [], [], [], []
@@ -226,10 +252,35 @@ def episode_buffers(env, policy, seeds) -> list:
             _append_info(infos, info)
             if terminated or truncated:
                 break
+        if time_to_go:
+            times = np.asarray(infos["time"])
+            infos["time_to_go"] = times[-1] - times if infos["is_success"][-1] else np.full(times.shape, np.nan)
         buffers.append(EpisodeBuffer(id=number, seed=int(seed), observations=np.array(observations),
                                      actions=np.array(actions), rewards=rewards, terminations=terminations,
                                      truncations=truncations, infos=_as_arrays(infos)))
     return buffers
+
+
+def oracle_buffers(task: str, env_id: str, seeds: list[int], first_id: int = 0) -> list:
+    """The oracle tier's episodes of ``seeds`` (episode_buffers with the time to go), in an
+    environment and an expert of their own: what one worker process of a build runs."""
+    env = make_env(task, env_id)
+    return episode_buffers(env, load_policy(ORACLE_EXPERT, env), seeds, time_to_go=True, first_id=first_id)
+
+
+def parallel_oracle_buffers(task: str, env_id: str, seeds: list[int], jobs: int = 1) -> list:
+    """oracle_buffers over ``jobs`` worker processes (contiguous shares of ``seeds``, in order):
+    the same episodes as one process's, each depending on its seed alone."""
+    jobs = min(checks.integer("jobs", jobs, 1, 256), len(seeds))
+    if jobs == 1:
+        return oracle_buffers(task, env_id, seeds)
+    import multiprocessing
+    from concurrent.futures import ProcessPoolExecutor
+
+    bounds = np.linspace(0, len(seeds), jobs + 1).astype(int)
+    with ProcessPoolExecutor(jobs, mp_context=multiprocessing.get_context("spawn")) as pool:
+        parts = [pool.submit(oracle_buffers, task, env_id, seeds[a:b], int(a)) for a, b in zip(bounds, bounds[1:])]
+        return [buffer for part in parts for buffer in part.result()]
 
 
 def _empty_infos() -> dict:
@@ -343,7 +394,7 @@ def reference_scores(task: str, expert: str, env_id: str = DATASET_ENV_ID) -> tu
 
 def build(name: str, episodes: int | None = None, out: Path | None = None, runs: Path | None = None,
           work: Path | None = None, verbose: bool = True, expert: dict | None = None,
-          scores: tuple[float, float] | None = None, medium: tuple[Path, list] | None = None):
+          scores: tuple[float, float] | None = None, medium: tuple[Path, list] | None = None, jobs: int = 1):
     """Write the dataset ``name`` (DATASETS) with ``episodes`` episodes (default: its own count;
     medium-replay: the first of the medium run's training episodes, default all) into Minari's
     data folder, or ``out`` (it becomes MINARI_DATASETS_PATH). runs: the published runs the
@@ -351,7 +402,8 @@ def build(name: str, episodes: int | None = None, out: Path | None = None, runs:
     EXPERT_TIERS records PUBLISHED_EXPERTS, the others are refused in one line); work: where the medium agent trains (default: a temporary folder);
     expert: pick_expert's record and scores: reference_scores' (measured here where None; the
     reference max score is the expert's, so every tier needs it); medium: train_medium's result
-    for the medium tiers (trained here where None). Returns the MinariDataset."""
+    for the medium tiers (trained here where None); jobs: the oracle tier's worker processes
+    (parallel_oracle_buffers). Returns the MinariDataset."""
     spec = get_dataset(name)
     count = spec.episodes if episodes is None else checks.integer("episodes", episodes, 1, 10**6)
     if out is not None:
@@ -368,7 +420,9 @@ def build(name: str, episodes: int | None = None, out: Path | None = None, runs:
                     "tier": spec.tier, "first_seed": None if spec.tier == "medium-replay" else seeds[0],
                     "expert": expert}
     with tempfile.TemporaryDirectory() as scratch:
-        if spec.tier == "random":
+        if spec.tier == ORACLE_TIER:
+            policy = load_policy(expert["policy"], env)  # its name; the workers build their own
+        elif spec.tier == "random":
             policy = RandomActions(env, spec.seed)
         elif spec.tier == "expert":
             policy = load_policy(expert["policy"], env)
@@ -382,8 +436,12 @@ def build(name: str, episodes: int | None = None, out: Path | None = None, runs:
                                     "total_timesteps": MEDIUM_STEPS, "seed": 0}
             policy = load_policy(f"torchppo:{folder}", env)
         record["behaviour"] = "torch-ppo rollouts (stochastic)" if spec.tier == "medium-replay" else policy.name
-        buffers = (rollouts[:count] if episodes is not None else rollouts) if spec.tier == "medium-replay" \
-            else episode_buffers(env, policy, seeds)
+        if spec.tier == "medium-replay":
+            buffers = rollouts[:count] if episodes is not None else rollouts
+        elif spec.tier == ORACLE_TIER:
+            buffers = parallel_oracle_buffers(spec.task, spec.env_id, seeds, jobs)
+        else:
+            buffers = episode_buffers(env, policy, seeds)
         description = json.dumps(record)
         dataset = _create_atomically(name, dict(
             buffer=buffers, env=env, eval_env=env, algorithm_name=f"{spec.tier}: {record['behaviour']}",
@@ -399,7 +457,11 @@ def build(name: str, episodes: int | None = None, out: Path | None = None, runs:
 def _expert(spec: DatasetSpec, runs: Path | None, scores: tuple[float, float] | None) -> tuple[dict, tuple | None]:
     """(pick_expert's record, the reference scores or None to measure them) for ``spec``: picked
     among the published runs where they are at hand, else PUBLISHED_EXPERTS' record and scores for
-    a tier that does not run the expert; UserError naming what is missing otherwise."""
+    a tier that does not run the expert; UserError naming what is missing otherwise. The oracle
+    tier's expert is the real-time MPC: it needs no runs."""
+    if spec.tier == ORACLE_TIER:
+        return {"policy": ORACLE_EXPERT, "rule": "the oracle tier's expert: the real-time MPC (agents.policies."
+                "mpc_rti) in the \"pd\" mode, with its defaults"}, scores
     if runs is not None:  # named by the user: there, or refused
         return pick_expert(spec.task, require_published_runs(runs)), scores
     runs = published_runs()
@@ -472,34 +534,49 @@ def replay(dataset, episodes: int | None = None) -> int:
 
 def build_all(episodes: int | None = None, out: Path | None = None, runs: Path | None = None,
               work: Path | None = None, summary: Path | None = None,
-              version: str = LATEST_DATASET_VERSION) -> list[dict]:
-    """Every dataset of DATASETS of ``version`` (each task's expert picked once, on the version's
-    id); rows of name, episodes, steps, size [MB] and build time [s], written as JSON to
-    ``summary`` where given."""
+              version: str = LATEST_DATASET_VERSION, tiers: tuple[str, ...] | None = None,
+              jobs: int = 1) -> list[dict]:
+    """Every dataset of DATASETS of ``version`` (of ``tiers`` where given; each task's expert picked
+    once, on the version's id); rows of name, episodes, steps, size [MB] and build time [s],
+    written as JSON to ``summary`` where given. A dataset already in the folder is kept as it is
+    (its row says so): an interrupted build goes on where it stopped. jobs: the oracle tier's
+    worker processes."""
     checks.choice("version", version, tuple(DATASET_VERSIONS))
+    every_tier = (*TIERS, ORACLE_TIER)
+    for tier in tiers or ():
+        checks.choice("tiers", tier, every_tier)
+    if out is not None:
+        os.environ["MINARI_DATASETS_PATH"] = str(Path(out).resolve())
+    chosen = [(n, s) for n, s in DATASETS.items() if s.version == version and s.tier in (tiers or every_tier)]
     rows, experts, scores, mediums = [], {}, {}, {}
-    runs = require_published_runs(runs)  # the expert tiers need them
+    if any(s.tier != ORACLE_TIER for _, s in chosen):
+        runs = require_published_runs(runs)  # the expert tiers need them
     with tempfile.TemporaryDirectory() as scratch:
-        for name, spec in ((n, s) for n, s in DATASETS.items() if s.version == version):
+        for name, spec in chosen:
             started = time.perf_counter()
-            if spec.task not in experts:
-                experts[spec.task] = pick_expert(spec.task, runs)
-                scores[spec.task] = reference_scores(spec.task, experts[spec.task]["policy"], spec.env_id)
+            if (datasets_root() / name).exists():
+                rows.append({**_row(load(name), None), "kept": "built before; kept as it is"})
+                continue
+            key = (spec.task, spec.tier == ORACLE_TIER)  # the oracle tier's expert is its own
+            if key not in experts:
+                experts[key] = _expert(spec, None, None)[0] if spec.tier == ORACLE_TIER else pick_expert(spec.task, runs)
+                scores[key] = reference_scores(spec.task, experts[key]["policy"], spec.env_id)
             if spec.tier in ("medium", "medium-replay") and spec.task not in mediums:
                 mediums[spec.task] = train_medium(spec.task, Path(work or scratch) / f"{spec.task}-medium",
                                                   env_id=spec.env_id)
-            dataset = build(name, episodes, out, runs, work, expert=experts[spec.task], scores=scores[spec.task],
-                            medium=mediums.get(spec.task))
+            dataset = build(name, episodes, out, runs, work, expert=experts[key], scores=scores[key],
+                            medium=mediums.get(spec.task), jobs=jobs)
             rows.append(_row(dataset, time.perf_counter() - started))
             if summary is not None:
-                write_json(summary, {"datasets": rows, "experts": experts})
+                write_json(summary, {"datasets": rows, "experts": {f"{task}{' (oracle)' if oracle else ''}": e
+                                                                   for (task, oracle), e in experts.items()}})
     return rows
 
 
-def _row(dataset, seconds: float) -> dict:
+def _row(dataset, seconds: float | None) -> dict:
     metadata = dataset.storage.metadata
     return {"name": dataset.id, "episodes": dataset.total_episodes, "steps": dataset.total_steps,
-            "size_mb": round(dataset.storage.get_size(), 2), "seconds": round(seconds, 1),
+            "size_mb": round(dataset.storage.get_size(), 2), "seconds": None if seconds is None else round(seconds, 1),
             "ref_min_score": metadata["ref_min_score"], "ref_max_score": metadata["ref_max_score"],
             "behaviour": metadata["algorithm_name"]}
 

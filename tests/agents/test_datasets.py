@@ -47,7 +47,11 @@ def test_the_random_dataset_built_by_the_command_loads_and_replays_bit_for_bit(m
     # the pick and the scores recorded for a build without the published runs are what they give
     published = datasets.PUBLISHED_EXPERTS["c11"]
     assert record["expert"]["policy"] == published["policy"].format(runs=files.CHECKOUT_RUNS)
-    assert (metadata["ref_min_score"], metadata["ref_max_score"]) == published["scores"]
+    assert metadata["ref_min_score"] == published["scores"][0]  # random actions: no network, bit for bit
+    # the expert is a torch network in float32: its kernels differ by CPU (vector width, fused
+    # multiply-add), and the c11 expert's 100-episode mean return moved by 1.6e-6 (5e-8 relative)
+    # between two x86 machines of this project; the pick and the scores agree to far below any use
+    assert metadata["ref_max_score"] == pytest.approx(published["scores"][1], rel=1e-6)
 
 
 def test_the_random_tier_needs_no_published_runs_and_the_expert_tier_says_how_to_get_them(tmp_path, monkeypatch,
@@ -105,9 +109,51 @@ def test_every_dataset_seed_is_a_training_seed_and_the_bands_do_not_overlap():
     bands.sort()
     assert all(a_end <= b_start for (_, a_end), (b_start, _) in zip(bands, bands[1:]))
     assert bands[-1][1] <= TRAINING_SEED_LIMIT <= TUNING_SEED
-    assert sorted(datasets.DATASETS) == sorted(f"scara/{t}/{tier}-{v}" for t in datasets.TASKS for tier in datasets.TIERS
-                                               for v in ("v0", "v1"))
+    tiered = [f"scara/{t}/{tier}-{v}" for t in datasets.TIERED_TASKS for tier in datasets.TIERS for v in ("v0", "v1")]
+    oracle = [f"scara/{t}/oracle-v1" for t in datasets.TASKS]  # every task has its oracle tier, -v1 on
+    assert sorted(datasets.DATASETS) == sorted(tiered + oracle)
+    assert sum(s.episodes for s in datasets.ORACLE_DATASETS) >= 5000
     assert {s.env_id for s in datasets.DATASETS.values() if s.version == "v1"} == {"Scara-C11-v2"}
+
+
+def test_the_oracle_tier_is_the_real_time_mpc_with_its_time_to_go_whatever_the_workers(minari_folder, tmp_path):
+    one = datasets.build("scara/random-shifts/oracle-v1", episodes=3, scores=(0.0, 1.0), verbose=False)
+    record = json.loads(one.storage.metadata["description"])
+    assert record["expert"]["policy"] == "mpc-rti" and record["behaviour"] == "mpc-rti"
+    assert record["env_id"] == "Scara-C11-v2" and record["env_kwargs"]["randomize_params"] == "all"
+    assert datasets.replay(one) == 3
+    spec = datasets.get_dataset("scara/random-shifts/oracle-v1")
+    metadata = list(one.storage.get_episode_metadata(range(3)))
+    assert [m["seed"] for m in metadata] == [spec.seed, spec.seed + 1, spec.seed + 2]
+    for episode in one.iterate_episodes():
+        time_to_go, times = episode.infos["time_to_go"], episode.infos["time"]
+        assert len(time_to_go) == len(episode.observations)
+        if episode.infos["is_success"][-1]:
+            np.testing.assert_array_equal(time_to_go, times[-1] - times)
+            assert time_to_go[-1] == 0.0 and np.all(np.diff(time_to_go) < 0)
+        else:
+            assert np.all(np.isnan(time_to_go))
+    two = datasets.build("scara/random-shifts/oracle-v1", episodes=3, scores=(0.0, 1.0), verbose=False,
+                         out=tmp_path / "two-workers", jobs=2)
+    for a, b in zip(one.iterate_episodes(), two.iterate_episodes(), strict=True):
+        assert a.id == b.id
+        np.testing.assert_array_equal(a.actions, b.actions)
+        np.testing.assert_array_equal(a.observations, b.observations)
+        np.testing.assert_array_equal(a.infos["time_to_go"], b.infos["time_to_go"])
+
+
+def test_build_all_keeps_what_was_built_and_the_command_replays_a_dataset(minari_folder, monkeypatch, capsys):
+    monkeypatch.setattr(datasets, "reference_scores", lambda task, expert, env_id: (0.0, 1.0))
+    names = [s.name for s in datasets.ORACLE_DATASETS]
+    datasets.build("scara/c11/oracle-v1", episodes=1, scores=(0.0, 1.0), verbose=False)
+    rows = run(["datasets", "build", "all", "--tiers", "oracle", "--episodes", "1"])
+    assert [r["name"] for r in rows] == names and [bool(r.get("kept")) for r in rows] == [True, False, False]
+    assert [r.get("kept") is not None for r in run(["datasets", "build", "all", "--tiers", "oracle"])] == [True] * 3
+    assert run(["datasets", "replay", "scara/random-targets/oracle-v1"]) == 1
+    assert "1 episodes replayed bit for bit" in capsys.readouterr().out
+    with pytest.raises(SystemExit) as exit_:
+        run(["datasets", "replay"])
+    assert exit_.value.code == 2 and "needs a dataset id" in capsys.readouterr().err
 
 
 def test_the_mixed_tier_alternates_the_expert_and_random_actions(minari_folder):
