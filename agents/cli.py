@@ -31,6 +31,7 @@ import sys
 from pathlib import Path
 
 from agents.algorithms.bc_config import BCConfig
+from agents.algorithms.dagger_config import DAggerConfig
 from agents.algorithms.loaders import POLICY_SPECS, shipped_model
 from agents.algorithms.progress import saved_to
 from agents.algorithms.sb3.hyperparams import load_hyperparams, numba_threads
@@ -168,6 +169,8 @@ def _config_value(field: dataclasses.Field, text: str):
         return text.lower() in ("true", "1")
     if kind.startswith("dict"):
         return parse_reward_weights(text)
+    if kind == "tuple[str, ...]":  # names, comma-separated (DAggerConfig.conditions)
+        return tuple(part.strip() for part in text.split(",") if part.strip())
     if kind.startswith("tuple"):
         return parse_floats(field.name, text, 3) if text else None
     if kind in ("str | None",):
@@ -227,8 +230,9 @@ def _train(args, argv) -> Path:
         overrides[key] = value
     hyper = None
     if overrides or args.randomize_target:
-        if run.trainer in ("torch-ppo", "bc"):
-            config_class, what = (Config, "torch PPO Config") if run.trainer == "torch-ppo" else (BCConfig, "BCConfig")
+        if run.trainer in ("torch-ppo", "bc", "dagger"):
+            config_class, what = {"torch-ppo": (Config, "torch PPO Config"), "bc": (BCConfig, "BCConfig"),
+                                  "dagger": (DAggerConfig, "DAggerConfig")}[run.trainer]
             fields = {f.name: f for f in dataclasses.fields(config_class) if f.name not in FLAGGED}
             flagged = sorted(set(overrides) & set(FLAGGED))
             if flagged:  # the command's own flags set these, and would silently replace them
@@ -692,7 +696,7 @@ def _datasets(args, argv):
             print(f"{name}  ({spec.episodes} episodes)")
         return list(datasets.DATASETS)
     if not args.name:
-        raise UserError(f"datasets {args.action} needs a dataset id{' or all' if args.action == 'build' else ''} "
+        raise UserError(f"datasets {args.action} needs a dataset id{' or ' + repr('all') if args.action == 'build' else ''} "
                         "(scara-agents datasets list names them)")
     _positive("--episodes", args.episodes)
     _positive("--jobs", args.jobs)

@@ -566,7 +566,7 @@ def recorded_run(folder: str | Path) -> dict:
         record = json_record(folder / RUN_RECORD)
     elif (folder / "config.json").is_file():
         config = json_record(folder / "config.json")
-        torch_run = config.get("algo") in ("torch-ppo", "bc")  # the torch trainers write their algo as their name
+        torch_run = config.get("algo") in ("torch-ppo", "bc", "dagger")  # the torch trainers write their algo as their name
         record = {"trainer": config["algo"] if torch_run else "sb3", "algo": config.get("algo", "ppo"),
                   "env_id": config.get("env_id"), "seed": config.get("seed"),
                   "control_mode": config.get("control_mode") if torch_run

@@ -47,6 +47,8 @@ from scara_gym.envs.task import OBSERVATION_LAYOUT
 from scara_gym.model.checks import UserError
 from scara_gym.wrappers import ResidualSetpoint, residual_setpoint
 
+CLONED = ("bc", "dagger")
+"""the runs whose policy is this file's MLP: behaviour cloning's and DAgger's (agents.algorithms.dagger)"""
 ON_TARGET = 1e-5
 """[rad, m] a recorded set-point this close to the target is the target (r = 0)"""
 Q, TARGET_ERROR = OBSERVATION_LAYOUT["q"], OBSERVATION_LAYOUT["target_error"]
@@ -152,20 +154,22 @@ class BCPolicy:
             raise FileNotFoundError(f"no model.pt in {str(run_dir)!r}: give a folder written by agents.algorithms.bc")
         checked = verify_digests(run_dir, WEIGHTS_FILES)  # read once: what loads is what was checked
         record = checked.json("config.json")
-        if record.get("algo") != "bc":
+        if record.get("algo") not in CLONED:
             other = " (a torch PPO run: torchppo:DIR)" if record.get("algo") == "torch-ppo" else ""
-            raise UserError(f"{run_dir}: not a behaviour-cloning run (its config.json says algo "
+            raise UserError(f"{run_dir}: not a behaviour-cloning or DAgger run (its config.json says algo "
                             f"{record.get('algo')!r}){other}")
-        if env.unwrapped.control_mode != "pd":
-            raise UserError(f"{run_dir} clones 'pd' mode actions, the environment is in "
+        mode = record.get("control_mode", "pd")
+        if env.unwrapped.control_mode != mode:
+            raise UserError(f"{run_dir} clones {mode!r} mode actions, the environment is in "
                             f"{env.unwrapped.control_mode!r} mode")
         saved = load_torch(run_dir / "model.pt", data=checked.bytes("model.pt"))
         self.actor = Actor(saved["obs_size"], saved["action_size"], saved["hidden_size"], saved["layers"])
         self.actor.load_state_dict(saved["state_dict"])
         self.actor.eval()
         config = BCConfig(**{k: v for k, v in record.items() if k in BCConfig.__dataclass_fields__})
-        self.mapping = residual_setpoint(env.unwrapped, config.residual_scale, config.residual_deadzone)
-        self.name = f"bc ({run_dir.name})"
+        self.mapping = residual_setpoint(env.unwrapped, config.residual_scale, config.residual_deadzone,
+                                         record.get("residual_on", "setpoint"))
+        self.name = f"{record['algo']} ({run_dir.name})"
 
     def reset(self) -> None:
         pass

@@ -9,8 +9,8 @@ A spec is ``KIND`` or ``KIND:ARG``:
 - ``run:DIR``, or the bare folder ``DIR``: a finished run of any trainer, loaded by the trainer its
   folder records (agents.files.recorded_run: run.json, else its config.json);
 - ``sb3:DIR`` (any SB3 run: PPO, SAC, TD3), ``torchppo:DIR`` (a run of the single-file PPO),
-  ``bc:DIR`` (a behaviour-cloning run), ``ppo:NAME`` (a shipped model, e.g. ``ppo_pd``) or ``ppo:DIR``:
-  the same runs with their trainer named;
+  ``bc:DIR`` (a behaviour-cloning or DAgger run: the same MLP), ``ppo:NAME`` (a shipped model, e.g.
+  ``ppo_pd``) or ``ppo:DIR``: the same runs with their trainer named;
 - ``shield:SPEC``: the policy of SPEC behind scara_gym.wrappers.Shield (e.g. ``shield:pd``).
 
 A known kind comes first: a folder named like one (``pd``) is given as ``./pd`` or ``run:pd``.
@@ -96,7 +96,7 @@ def _shield(env, arg: str):
     return Shield(env, load_policy(arg, env))
 
 
-TRAINERS = {"sb3": "sb3", "torch-ppo": "torchppo", "bc": "bc"}
+TRAINERS = {"sb3": "sb3", "torch-ppo": "torchppo", "bc": "bc", "dagger": "bc"}
 """a run folder's recorded trainer (agents.files.recorded_run) -> the spec kind that loads its policy"""
 
 

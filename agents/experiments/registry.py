@@ -34,10 +34,16 @@ TAGS = {
     "pilot": "a pilot, not a baseline: trained and logged (docs/experiments.md), left out of the comparison's tables",
     "interface-ablation": "one of three runs that differ only in the action interface (absolute set-point, "
                           "set-point relative to the target, residual on the PD law's voltages)",
+    "distilled": "distilled from an expert by DAgger at the states the network itself visits "
+                 "(agents.algorithms.dagger; the expert: the real-time MPC)",
     "constrained": "PPO-Lagrangian: the episode's collision cost held to cost_limit by a multiplier learned beside "
                    "the policy (agents.algorithms.torch_ppo_hooks.Lagrangian)",
 }
 """every tag a run may carry, and what it says"""
+
+
+TRAINERS = ("sb3", "torch-ppo", "bc", "dagger")
+"""the trainers a run may name"""
 
 
 @dataclass(frozen=True)
@@ -46,8 +52,8 @@ class RunSpec:
 
     name: str
     trainer: str
-    """"sb3" (agents.algorithms.sb3.training), "torch-ppo" (agents.algorithms.torch_ppo) or "bc"
-    (agents.algorithms.bc: behaviour cloning of ``dataset``)"""
+    """"sb3" (agents.algorithms.sb3.training), "torch-ppo" (agents.algorithms.torch_ppo), "bc"
+    (agents.algorithms.bc: behaviour cloning of ``dataset``) or "dagger" (agents.algorithms.dagger)"""
     description: str
     sb3_algorithm: str | None = None
     """SB3's algorithm class: "ppo", "sac" or "td3" (trainer "sb3")"""
@@ -68,8 +74,10 @@ class RunSpec:
         unknown = sorted(set(self.tags) - set(TAGS))
         if unknown:
             raise UserError(f"run {self.name!r}: unknown tags {unknown}; the tags are {sorted(TAGS)}")
-        if self.trainer not in ("sb3", "torch-ppo", "bc"):
-            raise UserError(f"run {self.name!r}: trainer must be 'sb3', 'torch-ppo' or 'bc', got {self.trainer!r}")
+        if self.trainer not in TRAINERS:
+            raise UserError(f"run {self.name!r}: trainer must be one of {TRAINERS}, got {self.trainer!r}")
+        if (self.trainer == "dagger") != ("distilled" in self.tags):
+            raise UserError(f"run {self.name!r}: the 'dagger' trainer and the 'distilled' tag go together")
         if (self.trainer == "bc") != ("offline" in self.tags):
             raise UserError(f"run {self.name!r}: the 'bc' trainer and the 'offline' tag go together")
         if self.trained_on is not None and self.trained_on not in CONDITIONS:
@@ -210,6 +218,14 @@ RUNS = _runs(
             fields={**RESIDUAL, "reward_weights": {**FAST_WEIGHTS, "energy": 0.03}, "shield": True,
                     "total_timesteps": 1_000_000},
             tags=frozenset({"pilot", "engineered", "residual", "energy-aware", "shielded"})),
+    RunSpec("dagger-mpc-rti", "dagger", "DAgger on the real-time MPC (pd mode) over the c11-starts, random-targets "
+            "and random-shifts training draws, in the residual set-point's space around the target",
+            fields={}, tags=frozenset({"distilled", "residual", "perturbed-starts", "random-targets",
+                                       "domain-randomized"})),
+    RunSpec("dagger-mpc-rti-voltage", "dagger", "DAgger on the real-time MPC in voltage mode, as a correction of "
+            "the PD law's voltages (PD + 2 r; train with --control-mode voltage), over the same draws",
+            fields={"residual_on": "pd", "residual_scale": (2.0, 2.0, 2.0), "residual_deadzone": 0.0},
+            tags=frozenset({"distilled", "residual", "perturbed-starts", "random-targets", "domain-randomized"})),
     RunSpec("bc-c11-expert", "bc", "behaviour cloning of scara/c11/expert-v0 (agents.experiments.datasets) in the "
             "residual set-point's space", fields={"dataset": "scara/c11/expert-v0", **RESIDUAL},
             tags=frozenset({"offline", "residual"})),

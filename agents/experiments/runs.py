@@ -18,6 +18,7 @@ import time
 from pathlib import Path
 
 from agents.algorithms.bc_config import BCConfig
+from agents.algorithms.dagger_config import DAggerConfig
 from agents.algorithms.sb3.hyperparams import load_hyperparams
 from agents.algorithms.sb3.training import train as train_sb3, train_residual_ppo
 from agents.algorithms.torch_ppo_config import Config
@@ -87,9 +88,13 @@ def hyperparams_of(name: str, env_id: str = ENV_ID, control_mode: str = "pd") ->
     run = spec(name)
     if run.trainer == "sb3":
         return load_hyperparams(run.recipe, env_id, control_mode, run.variant)
-    config_class, identity = (BCConfig, ("seed", "out")) if run.trainer == "bc" else \
-        (Config, ("env_id", "control_mode", "seed", "out"))
-    fields = config_class(**run.fields).to_dict()
+    if run.trainer == "bc":
+        config_class, identity, given = BCConfig, ("seed", "out"), {}
+    else:
+        config_class, identity = (DAggerConfig if run.trainer == "dagger" else Config), ("env_id", "control_mode",
+                                                                                          "seed", "out")
+        given = {"env_id": env_id, "control_mode": control_mode}
+    fields = config_class(**{**run.fields, **given}).to_dict()
     for name_ in identity:
         fields.pop(name_)
     return fields
@@ -118,6 +123,15 @@ def train_run(name: str, out: Path, seed: int, env_id: str = ENV_ID, control_mod
         if total_timesteps:  # its budget: Adam steps
             fields["steps"] = total_timesteps
         train_bc(BCConfig(**{**fields, "seed": seed, "out": str(out)}), overwrite=overwrite, resume=resume)
+        return Path(out)
+    if run.trainer == "dagger":
+        from agents.algorithms.dagger import train as train_dagger
+
+        fields = dict(run.fields) if hyperparams is None else dict(hyperparams)
+        if total_timesteps:  # its budget: iterations
+            fields["iterations"] = total_timesteps
+        train_dagger(DAggerConfig.from_dict({**fields, "env_id": env_id, "control_mode": control_mode, "seed": seed,
+                                             "out": str(out)}), overwrite=overwrite, resume=resume)
         return Path(out)
     if run.trainer == "torch-ppo":
         return _train_torch_ppo(run, Path(out), seed, env_id, control_mode, total_timesteps, hyperparams, resume,

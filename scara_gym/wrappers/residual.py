@@ -186,6 +186,18 @@ class ResidualOnPD:
         target = obs[:, Q] + obs[:, TARGET_ERROR]
         return np.clip(self.env.pd_action(obs, target) + self.scale * r, -1.0, 1.0)
 
+    def agent_actions(self, obs: np.ndarray, env_actions: np.ndarray) -> np.ndarray:
+        """Outputs r in [-1, 1] that this map turns into the given voltage actions on raw
+        observations (demonstrations in the agent's own action space): the voltage's difference
+        from the PD law's over residual_scale, clipped to [-1, 1] (0 on an axis whose scale is 0).
+        """
+        obs = np.atleast_2d(np.asarray(obs, dtype=float))
+        env_actions = np.atleast_2d(np.asarray(env_actions, dtype=float))
+        target = obs[:, Q] + obs[:, TARGET_ERROR]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            r = np.where(self.scale > 0, (env_actions - self.env.pd_action(obs, target)) / self.scale, 0.0)
+        return np.clip(r, -1.0, 1.0)
+
 
 RESIDUAL_ON = ("setpoint", "pd")
 """what a residual acts on: the set-point around the target (ResidualSetpoint), or the PD law's

@@ -227,7 +227,7 @@ FILE_MISTAKES = [
     (["datasets", "build", "scara/c11/expert-v0", "--runs", "FILE"], "argument --runs: FILE is a file"),
     (["torch-ppo", "--total-timesteps", "16", "--out", "RUN"], r"RUN/config\.json: holds a JSON list, not the object"),
     (["evaluate", "--policies", "bc:RUN"], r"RUN/config\.json: holds a JSON list"),
-    (["evaluate", "--policies", "bc:TORCH"], r"TORCH: not a behaviour-cloning run .*torchppo:DIR"),
+    (["evaluate", "--policies", "bc:TORCH"], r"TORCH: not a behaviour-cloning or DAgger run .*torchppo:DIR"),
     (["evaluate", "--policies", "bc:BROKEN"], r"BROKEN/config\.json: not JSON"),
     (["torch-ppo", "--total-timesteps", "16", "--out", "BROKEN"], r"BROKEN/config\.json: not JSON"),
 ]
