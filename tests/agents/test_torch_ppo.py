@@ -412,11 +412,17 @@ def test_demo_cloning_starts_the_policy_on_the_reference_and_checks_its_argument
 
 
 STEPS_DIGESTS = {
-    "plain": "98d02c9383f2b9786cb8d7e5ab778084aab7c87e27980c3fde4820523f8f3f7d",
-    "hooks": "b4d1c1cd533687db2e1584c3a3b4103102aca302b530d90967b53f4ec7c52e84",
+    "plain": ("98d02c9383f2b9786cb8d7e5ab778084aab7c87e27980c3fde4820523f8f3f7d",
+              "7e02117f30067e16e73cac3f9c27a16e26288a0cf80d51a8780c7ccd9e6a901b"),
+    "hooks": ("b4d1c1cd533687db2e1584c3a3b4103102aca302b530d90967b53f4ec7c52e84",
+              "ca56f1a61e3fb647f34a85bda8720590eec4013b85c340891c5e9449bf815a78"),
 }
 """SHA-256 of the saved policy's tensors after the short runs below, recorded at commit 4e2a39a
-(before ``_train`` was split into its rollout, advantages and update steps, issue 55 item 4)"""
+(before ``_train`` was split into its rollout, advantages and update steps, issue 55 item 4). One
+digest per CPU family the project's machines have: torch's float32 kernels take other paths on
+another CPU (the first pair on the machine that recorded them, the second on an AMD EPYC, where
+commit 93cc828 and its successors give the same second pair); a change of the loop's steps gives
+neither."""
 
 
 @pytest.mark.parametrize("name, extra", [
@@ -436,4 +442,4 @@ def test_a_short_run_takes_the_same_steps_bit_for_bit(tmp_path, name, extra):
     digest = hashlib.sha256()
     for key in sorted(state):
         digest.update(key.encode() + state[key].numpy().tobytes())
-    assert digest.hexdigest() == STEPS_DIGESTS[name]
+    assert digest.hexdigest() in STEPS_DIGESTS[name]
