@@ -97,6 +97,21 @@ class Actor(nn.Module):
         return self.body((obs - self.mean) / self.scale)
 
 
+def fit(actor: Actor, optimizer, obs: np.ndarray, targets: np.ndarray, steps: int, batch_size: int,
+        generator: torch.Generator) -> float:
+    """``steps`` Adam steps of the mean squared error on minibatches drawn with ``generator``;
+    returns the final loss on all of the data."""
+    obs_t, targets_t = torch.as_tensor(obs), torch.as_tensor(targets)
+    for _ in range(steps):
+        rows = torch.randint(len(obs_t), (batch_size,), generator=generator)
+        loss = ((actor(obs_t[rows]) - targets_t[rows]) ** 2).mean()
+        optimizer.zero_grad()
+        loss.backward()
+        optimizer.step()
+    with torch.no_grad():
+        return float(((actor(obs_t) - targets_t) ** 2).mean())
+
+
 def run_record(config: BCConfig) -> dict:
     """What a run of ``config`` is, for agents.files.claim_run_folder."""
     settings = {k: v for k, v in config.to_dict().items() if k not in ("out", "torch_threads")}
@@ -125,16 +140,8 @@ def train(config: BCConfig, overwrite: bool = False, resume: bool = False) -> di
         actor.mean.copy_(torch.as_tensor(obs.mean(0)))
         actor.scale.copy_(torch.as_tensor(obs.std(0) + 1e-6))
         optimizer = torch.optim.Adam(actor.parameters(), lr=config.learning_rate)
-        obs_t, actions_t = torch.as_tensor(obs), torch.as_tensor(actions)
         generator = torch.Generator().manual_seed(config.seed)
-        for _ in range(config.steps):
-            rows = torch.randint(len(obs_t), (config.batch_size,), generator=generator)
-            loss = ((actor(obs_t[rows]) - actions_t[rows]) ** 2).mean()
-            optimizer.zero_grad()
-            loss.backward()
-            optimizer.step()
-        with torch.no_grad():
-            final_loss = float(((actor(obs_t) - actions_t) ** 2).mean())
+        final_loss = fit(actor, optimizer, obs, actions, config.steps, config.batch_size, generator)
         save_torch({"state_dict": actor.state_dict(), "obs_size": obs.shape[1], "action_size": actions.shape[1],
                     "hidden_size": config.hidden_size, "layers": config.layers}, out / "model.pt")
         summary = {"train_seconds": time.perf_counter() - started, "transitions": len(obs), "final_loss": final_loss}
@@ -145,8 +152,24 @@ def train(config: BCConfig, overwrite: bool = False, resume: bool = False) -> di
     return record
 
 
-class BCPolicy:
-    """A behaviour-cloning run as an obs -> action policy."""
+class ActorPolicy:
+    """An Actor as an obs -> env action policy through ``mapping`` (a residual map of
+    scara_gym.wrappers.residual; None: the actor's outputs are the env's actions)."""
+
+    def __init__(self, actor: Actor, mapping, name: str) -> None:
+        self.actor, self.mapping, self.name = actor, mapping, name
+
+    def reset(self) -> None:
+        pass
+
+    def __call__(self, obs: np.ndarray) -> np.ndarray:
+        with torch.no_grad():
+            output = self.actor(torch.as_tensor(np.asarray(obs, dtype=np.float32))[None])[0].numpy().astype(np.float64)
+        return output if self.mapping is None else self.mapping(obs, output)[0]
+
+
+class BCPolicy(ActorPolicy):
+    """A behaviour-cloning (or DAgger) run as an obs -> action policy."""
 
     def __init__(self, env, run_dir: str | Path) -> None:
         run_dir = Path(run_dir)
@@ -163,18 +186,10 @@ class BCPolicy:
             raise UserError(f"{run_dir} clones {mode!r} mode actions, the environment is in "
                             f"{env.unwrapped.control_mode!r} mode")
         saved = load_torch(run_dir / "model.pt", data=checked.bytes("model.pt"))
-        self.actor = Actor(saved["obs_size"], saved["action_size"], saved["hidden_size"], saved["layers"])
-        self.actor.load_state_dict(saved["state_dict"])
-        self.actor.eval()
+        actor = Actor(saved["obs_size"], saved["action_size"], saved["hidden_size"], saved["layers"])
+        actor.load_state_dict(saved["state_dict"])
+        actor.eval()
         config = BCConfig(**{k: v for k, v in record.items() if k in BCConfig.__dataclass_fields__})
-        self.mapping = residual_setpoint(env.unwrapped, config.residual_scale, config.residual_deadzone,
-                                         record.get("residual_on", "setpoint"))
-        self.name = f"{record['algo']} ({run_dir.name})"
-
-    def reset(self) -> None:
-        pass
-
-    def __call__(self, obs: np.ndarray) -> np.ndarray:
-        with torch.no_grad():
-            output = self.actor(torch.as_tensor(np.asarray(obs, dtype=np.float32))[None])[0].numpy().astype(np.float64)
-        return output if self.mapping is None else self.mapping(obs, output)[0]
+        super().__init__(actor, residual_setpoint(env.unwrapped, config.residual_scale, config.residual_deadzone,
+                                                  record.get("residual_on", "setpoint")),
+                         f"{record['algo']} ({run_dir.name})")

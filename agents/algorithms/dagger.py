@@ -41,7 +41,7 @@ from scara_gym.extras import require
 require("torch")
 import torch
 
-from agents.algorithms.bc import Actor, residual_outputs
+from agents.algorithms.bc import Actor, ActorPolicy, fit, residual_outputs
 from agents.algorithms.dagger_config import DAGGER_SEED, DAggerConfig
 from agents.algorithms.loaders import load_policy
 from agents.files import (
@@ -78,21 +78,6 @@ def labels(mapping, obs: np.ndarray, actions: np.ndarray) -> np.ndarray:
     return mapping.agent_actions(obs, actions).astype(np.float32)
 
 
-class Learner:
-    """The network as an obs -> env action policy through ``mapping`` (its env's residual map)."""
-
-    def __init__(self, actor: Actor, mapping) -> None:
-        self.actor, self.mapping, self.name = actor, mapping, "dagger"
-
-    def reset(self) -> None:
-        pass
-
-    def __call__(self, obs: np.ndarray) -> np.ndarray:
-        with torch.no_grad():
-            out = self.actor(torch.as_tensor(np.asarray(obs, dtype=np.float32))[None])[0].numpy().astype(np.float64)
-        return out if self.mapping is None else self.mapping(obs, out)[0]
-
-
 def learner_map(env, config: DAggerConfig):
     """The residual map of ``config`` on ``env`` (None: the network acts in the env's own actions)."""
     return residual_setpoint(env.unwrapped, config.residual_scale, config.residual_deadzone, config.residual_on)
@@ -106,7 +91,7 @@ def collect(config: DAggerConfig, iteration: int, envs: dict, experts: dict, act
     for k in range(config.episodes_per_iteration):
         name = config.conditions[k % len(config.conditions)]
         condition, env, expert = get_condition(name), envs[name], experts[name]
-        learner = Learner(actor, learner_map(env, config))
+        learner = ActorPolicy(actor, learner_map(env, config), "dagger")
         seed = DAGGER_SEED + config.seed * 10**5 + iteration * 10**3 + k
         obs, _ = env.reset(seed=seed, options=condition.options(seed))
         expert.reset()
@@ -143,20 +128,6 @@ def tuning_time(policy_factory, config: DAggerConfig) -> dict:
         collisions.append(result["collisions"] > 0)
     return {"mean_time": float(np.concatenate(times).mean()), "success_rate": float(np.concatenate(success).mean()),
             "collision_rate": float(np.concatenate(collisions).mean())}
-
-
-def fit(actor: Actor, optimizer, obs: np.ndarray, targets: np.ndarray, config: DAggerConfig,
-        generator: torch.Generator) -> float:
-    """``steps_per_iteration`` Adam steps on minibatches of the aggregate; the final loss on all of it."""
-    obs_t, targets_t = torch.as_tensor(obs), torch.as_tensor(targets)
-    for _ in range(config.steps_per_iteration):
-        rows = torch.randint(len(obs_t), (config.batch_size,), generator=generator)
-        loss = ((actor(obs_t[rows]) - targets_t[rows]) ** 2).mean()
-        optimizer.zero_grad()
-        loss.backward()
-        optimizer.step()
-    with torch.no_grad():
-        return float(((actor(obs_t) - targets_t) ** 2).mean())
 
 
 def train(config: DAggerConfig, overwrite: bool = False, resume: bool = False) -> dict:
@@ -199,9 +170,9 @@ def train(config: DAggerConfig, overwrite: bool = False, resume: bool = False) -
             if iteration == 0:  # the standardization: the expert's own states
                 actor.mean.copy_(torch.as_tensor(obs.mean(0)))
                 actor.scale.copy_(torch.as_tensor(obs.std(0) + 1e-6))
-            loss = fit(actor, optimizer, obs, targets, config, generator)
+            loss = fit(actor, optimizer, obs, targets, config.steps_per_iteration, config.batch_size, generator)
             actor.eval()
-            scored = tuning_time(lambda env: Learner(actor, learner_map(env, config)), config)
+            scored = tuning_time(lambda env: ActorPolicy(actor, learner_map(env, config), "dagger"), config)
             actor.train()
             gap = scored["mean_time"] - expert_tuning["mean_time"]
             history.append({"iteration": iteration, **figures, "transitions": len(obs), "loss": loss,
