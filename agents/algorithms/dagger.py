@@ -164,7 +164,8 @@ def train(config: DAggerConfig, overwrite: bool = False, resume: bool = False) -
             expert_tuning = saved["expert_tuning"]
         if expert_tuning is None:
             expert_tuning = tuning_time(lambda env: load_policy(config.expert, env), config)
-        while iteration < config.iterations:
+        # the patience is in the loop's condition: a run resumed after it ran out ends at once
+        while iteration < config.iterations and (best is None or iteration - best["iteration"] <= config.patience):
             new_obs, new_targets, figures = collect(config, iteration, envs, experts, actor, rng)
             obs, targets = np.concatenate([obs, new_obs]), np.concatenate([targets, new_targets])
             if iteration == 0:  # the standardization: the expert's own states
@@ -188,8 +189,6 @@ def train(config: DAggerConfig, overwrite: bool = False, resume: bool = False) -
                         "generator": generator.get_state(), "rng": state_json(rng.bit_generator.state),
                         "obs": torch.as_tensor(obs), "targets": torch.as_tensor(targets), "history": history,
                         "best": best, "iteration": iteration, "expert_tuning": expert_tuning}, out / "checkpoint.pt")
-            if iteration - best["iteration"] > config.patience:
-                break
         save_torch({"state_dict": best["state_dict"], "obs_size": obs_size, "action_size": action_size,
                     "hidden_size": config.hidden_size, "layers": config.layers}, out / "model.pt")
         summary = {"train_seconds": time.perf_counter() - started, "iterations": history,

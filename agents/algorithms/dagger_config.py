@@ -6,7 +6,6 @@ from __future__ import annotations
 import dataclasses
 from dataclasses import dataclass
 
-from agents.algorithms.torch_ppo_config import SEED_MAX
 from scara_gym.benchmark.protocol import CONDITIONS, ENV_ID
 from scara_gym.model import checks
 from scara_gym.model.checks import UserError
@@ -72,7 +71,6 @@ class DAggerConfig:
         for name in ("hidden_size", "layers", "batch_size", "steps_per_iteration"):
             checks.integer(name, getattr(self, name), 1, None)
         checks.real("learning_rate", self.learning_rate, 0.0, 1.0, low_open=True)
-        assert self.seed <= SEED_MAX
 
     def to_dict(self) -> dict:
         return dataclasses.asdict(self)
