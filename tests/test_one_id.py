@@ -121,3 +121,18 @@ def test_no_filter_of_gymnasiums_out_of_date_note_outside_the_tests():
             elif re.search(r"(filterwarnings|simplefilter)\(\s*[\"']ignore[\"']\s*\)", line):
                 found.append(f"{name}:{number}: {line.strip()}")  # a blanket filter silences it too
     assert found == []
+
+
+def test_the_published_results_name_the_latest_id():
+    """The comparison and the robustness curves are published on the latest id, every comparison
+    entry naming it (runs trained on an older id are scored on it as they are), each made by a
+    product command that the file records."""
+    import json
+
+    results = ROOT / "docs" / "results"
+    comparison = json.loads((results / "comparison.json").read_text())
+    assert comparison["env_id"] == LATEST_ENV_ID
+    assert comparison["policies"] and {entry["env_id"] for entry in comparison["policies"]} == {LATEST_ENV_ID}
+    assert comparison["command"].startswith("scara-agents compare ")
+    curves = json.loads((results / "curves.json").read_text())
+    assert curves["env_id"] == LATEST_ENV_ID and curves["command"].startswith("scara-agents curves ")
