@@ -122,8 +122,9 @@ def _tree_digest(folder: Path) -> str:
 @pytest.mark.slow
 def test_a_non_editable_install_works_outside_the_clone(tmp_path):
     """pip install (not -e) into a folder, then from a folder outside the clone: evaluation of a
-    shipped model by name, a tiny training run and the random tier of a dataset, which needs no
-    published runs (the expert tier says in one line how to get them). Training writes under
+    shipped model by name, a tiny training run, the random tier of a dataset, which needs no
+    published runs (the expert tier says in one line how to get them), the seed paper's
+    reproduction and a plain function scored under the protocol. Training writes under
     runs/, evaluation and the dataset under their --out only, the home folder gets caches at
     most, and the installed package (the shipped models included) stays as it was."""
     pytest.importorskip("stable_baselines3")
@@ -167,6 +168,16 @@ def test_a_non_editable_install_works_outside_the_clone(tmp_path):
         assert refused.returncode == 2 and len(refused.stderr.strip().splitlines()) == 1, refused.stderr
         assert "SCARA_GYM_PUBLISHED_RUNS=CLONE/results/runs" in refused.stderr
         assert not (work / "data" / "scara" / "c11" / "expert-v0").exists()
-    assert {p.name for p in work.iterdir()} <= {"data", "out", "runs"}
+    reproduced = run("-m", "scara_gym.benchmark.cli", "reproduce", "--out", "figures", "--repeats", "1")
+    assert reproduced.returncode == 0, reproduced.stderr
+    assert any((work / "figures").glob("*.png"))
+    scored = run("-c", "import numpy as np\n"
+                       "from scara_gym.benchmark.protocol import evaluate\n"
+                       "def hold(obs):\n    return np.zeros(3)\n"
+                       "result = evaluate('c11-starts', policy=hold, episodes=2)\n"
+                       "print('scored', len(result['success']), int(result['success'].sum()))")
+    assert scored.returncode == 0, scored.stderr
+    assert "scored 2 " in scored.stdout  # a plain function under the protocol, from outside the clone
+    assert {p.name for p in work.iterdir()} <= {"data", "out", "runs", "figures"}
     assert {p.relative_to(home).parts[0] for p in home.rglob("*") if p.is_file()} <= {".cache", ".config"}
     assert _tree_digest(shipped) == before and _tree_digest(site) == installed
