@@ -136,3 +136,13 @@ def test_the_published_results_name_the_latest_id():
     assert comparison["command"].startswith("scara-agents compare ")
     curves = json.loads((results / "curves.json").read_text())
     assert curves["env_id"] == LATEST_ENV_ID and curves["command"].startswith("scara-agents curves ")
+
+
+def test_the_published_datasets_summary_is_the_latest_version():
+    """docs/results/datasets.json lists the datasets of the version on the latest id."""
+    import json
+
+    from agents.experiments.datasets import DATASETS
+
+    rows = json.loads((ROOT / "docs" / "results" / "datasets.json").read_text())["datasets"]
+    assert rows and all(DATASETS[row["name"]].env_id == LATEST_ENV_ID for row in rows)
