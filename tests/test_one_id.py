@@ -2,6 +2,7 @@
 arguments unless told otherwise, and nothing outside the tests filters Gymnasium's note that an
 id is out of date."""
 
+import json
 import re
 import subprocess
 from pathlib import Path
@@ -127,8 +128,6 @@ def test_the_published_results_name_the_latest_id():
     """The comparison and the robustness curves are published on the latest id, every comparison
     entry naming it (runs trained on an older id are scored on it as they are), each made by a
     product command that the file records."""
-    import json
-
     results = ROOT / "docs" / "results"
     comparison = json.loads((results / "comparison.json").read_text())
     assert comparison["env_id"] == LATEST_ENV_ID
@@ -140,8 +139,6 @@ def test_the_published_results_name_the_latest_id():
 
 def test_the_published_datasets_summary_is_the_latest_version():
     """docs/results/datasets.json lists the datasets of the version on the latest id."""
-    import json
-
     from agents.experiments.datasets import DATASETS
 
     rows = json.loads((ROOT / "docs" / "results" / "datasets.json").read_text())["datasets"]
