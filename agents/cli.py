@@ -47,7 +47,7 @@ from agents.experiments.report import comparison_figures, comparison_markdown, e
 from agents.experiments.runs import campaign, hyperparams_of, train_run
 from agents.experiments.search import SPACES, run_search
 from agents.experiments.targets import target_checks
-from agents.files import TRUST_ENV, RunLocked, write_atomic, write_json
+from agents.files import TRUST_ENV, RunLocked, write_atomic, write_json, write_json_lines
 from agents.policies.optimal import CollocationConfig
 from agents.policies.optimal.policy import solve_reference
 from scara_gym import DEFAULT_PARAMS
@@ -410,7 +410,7 @@ def _compare(args, argv) -> list[dict]:
         data = {"env_id": ENV_ID, "command": command, "conditions": protocol_record(conditions),
                 "targets": target_checks(entries), "policies": entries}
     args.out.mkdir(parents=True, exist_ok=True)
-    write_json(args.out / "comparison.json", data, indent=1)
+    write_json_lines(args.out / "comparison.json", data)
     report = comparison_markdown(entries)
     write_atomic(args.out / "comparison.md", report)
     if args.only:

@@ -74,6 +74,20 @@ def write_json(path: str | Path, value, indent: int | None = 2) -> Path:
     return write_atomic(path, json.dumps(value, indent=indent))
 
 
+def write_json_lines(path: str | Path, value, open_levels: int = 2) -> Path:
+    """``value`` as JSON at ``path``, atomically, with its first ``open_levels`` levels one item
+    per line and everything below them compact: a large record (the comparison's hundreds of
+    entries) stays small on disk and still diffs an entry at a time."""
+    def text(item, levels: int) -> str:
+        if levels <= 0 or not isinstance(item, (dict, list)) or not item:
+            return json.dumps(item, separators=(",", ":"))
+        if isinstance(item, dict):
+            return "{\n" + ",\n".join(f"{json.dumps(str(k))}:{text(v, levels - 1)}" for k, v in item.items()) + "\n}"
+        return "[\n" + ",\n".join(text(v, levels - 1) for v in item) + "\n]"
+
+    return write_atomic(path, text(value, open_levels) + "\n")
+
+
 def save_torch(value, path: str | Path) -> Path:
     """``torch.save`` of ``value``, atomically."""
     require("torch")

@@ -67,3 +67,11 @@ def test_the_site_builds_with_warnings_as_errors(tmp_path):
     assert result.returncode == 0, result.stdout + result.stderr
     for page in ("index.html", "envs/Scara-C11-v2/index.html", "comparison/index.html", "api/index.html"):
         assert (tmp_path / "site" / page).exists(), page
+
+
+def test_the_published_results_are_small_and_hold_no_model():
+    """docs/results keeps JSON, Markdown and figures under 2 MB in all; trained runs live in
+    results/runs, beside the docs, where the loader finds them."""
+    files = [p for p in (ROOT / "docs" / "results").rglob("*") if p.is_file()]
+    assert files and {p.suffix for p in files} <= {".json", ".md", ".png"}
+    assert sum(p.stat().st_size for p in files) < 2_000_000

@@ -1,5 +1,6 @@
 """agents.files: whole files or none, and loads that never run code from a file."""
 
+import json
 import os
 import pickle
 
@@ -27,6 +28,18 @@ def test_a_write_that_fails_leaves_the_old_file_and_no_temporary(tmp_path, monke
     with pytest.raises(KeyboardInterrupt):
         files.write_json(target, {"update": 2})
     assert target.read_text() == '{\n  "update": 1\n}' and sorted(p.name for p in tmp_path.iterdir()) == ["config.json"]
+
+
+def test_json_lines_round_trip_with_an_entry_per_line_and_nothing_padded(tmp_path):
+    value = {"env_id": "Scara-C11-v2", "policies": [{"name": "pd", "ci": [1.25, 1.5]}, {"name": "mpc", "x": None}],
+             "conditions": {"c11": {"seed": 1}}, "empty": [], 3: "int key"}
+    path = files.write_json_lines(tmp_path / "c.json", value)
+    text = path.read_text()
+    assert json.loads(text) == json.loads(json.dumps(value))
+    lines = text.splitlines()
+    assert '{"name":"pd","ci":[1.25,1.5]},' in lines and '{"name":"mpc","x":null}' in lines
+    assert '"c11":{"seed":1}' in lines and '"empty":[],' in lines
+    assert not any(line.startswith(" ") for line in lines) and ": " not in text
 
 
 def test_weights_round_trip_and_a_pickle_payload_is_refused_unrun(tmp_path):
