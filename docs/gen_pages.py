@@ -92,8 +92,13 @@ def headline_table(comparison: Path = DOCS / "results" / "comparison.json") -> s
     from agents.experiments import report
 
     data = json.loads(comparison.read_text())
-    entries = data["policies"]
+    entries = [e for e in data["policies"] if not ABLATION_TAGS & set(e.get("tags") or ())]
     return report.overview(entries, report.HEADLINE_CONDITIONS) + "\n" + headline_legend(data)
+
+
+ABLATION_TAGS = {"interface-ablation"}
+"""the registry tags of runs that answer a question about a design choice rather than compete:
+their rows are in the comparison's tables, not in the headline"""
 
 
 def headline_legend(data: dict) -> str:
@@ -114,7 +119,8 @@ def headline_legend(data: dict) -> str:
             "(about three quarters of the episodes or more missed the target). \"-\": no episode reached the target. \"n/a\": the policy is not scored in that "
             "condition (the optimal replay exists for the C11 start, target and parameters only; the robust "
             "shield is scored where the parameters are drawn). (success rate / collision rate) where not every "
-            "episode succeeds without a collision.\n")
+            "episode succeeds without a collision. The interface ablation's rows (absolute, target-relative and "
+            "residual action interfaces of one PPO) are in the full tables, `docs/results/comparison.md`.\n")
 
 
 def with_headline(text: str, table: str) -> str:
