@@ -92,13 +92,8 @@ def headline_table(comparison: Path = DOCS / "results" / "comparison.json") -> s
     from agents.experiments import report
 
     data = json.loads(comparison.read_text())
-    entries = [e for e in data["policies"] if not ABLATION_TAGS & set(e.get("tags") or ())]
+    entries = report.headline_entries(data["policies"])
     return report.overview(entries, report.HEADLINE_CONDITIONS) + "\n" + headline_legend(data)
-
-
-ABLATION_TAGS = {"interface-ablation"}
-"""the registry tags of runs that answer a question about a design choice rather than compete:
-their rows are in the comparison's tables, not in the headline"""
 
 
 def headline_legend(data: dict) -> str:
@@ -107,7 +102,7 @@ def headline_legend(data: dict) -> str:
     from agents.experiments import report
     from agents.experiments.statistics import TIME_LIMIT
 
-    shown = [e for e in data["policies"] if e["condition"] in report.HEADLINE_CONDITIONS]
+    shown = [e for e in report.headline_entries(data["policies"]) if e["condition"] in report.HEADLINE_CONDITIONS]
     episodes = sorted({e["episodes"] for e in shown if e["condition"] != "c11"})
     seeds = sorted({len(e["seeds"]) for e in shown if e["seeds"]})
     counts = " or ".join(str(n) for n in episodes)

@@ -197,7 +197,15 @@ def curve_figure(data: dict, path: Path) -> Path:
 
 
 HEADLINE_CONDITIONS = ("c11", "c11-starts", "random-targets", "random-shifts", "sensor-noise", "delay-1")
-"""the conditions of the README's headline table (overview(entries, HEADLINE_CONDITIONS))"""
+"""the conditions of the README's headline table (overview(headline_entries(entries), HEADLINE_CONDITIONS))"""
+ABLATION_TAGS = frozenset({"interface-ablation"})
+"""the registry tags of runs that answer a question about a design choice rather than compete:
+their rows are in the comparison's tables, not in the headline"""
+
+
+def headline_entries(entries: list[dict]) -> list[dict]:
+    """The entries the headline table shows: all but the ablations' (ABLATION_TAGS)."""
+    return [e for e in entries if not ABLATION_TAGS & set(e.get("tags") or ())]
 
 
 def overview(entries: list[dict], conditions: tuple[str, ...] | None = None) -> str:
