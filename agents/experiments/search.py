@@ -131,7 +131,10 @@ def rungs(grace_steps: int, max_steps: int) -> list[int]:
 
 def rung_callback(at: list[int], condition, episodes: int, hyper: dict, control_mode: str, report):
     """An SB3 callback that scores the model in training at each of the steps ``at`` on the
-    tuning set ``condition`` and hands {"steps", "objective", band figures} to ``report``."""
+    tuning set ``condition`` and hands {"steps", "objective", band figures} to ``report``. A trial
+    resumed from its snapshot skips the rungs at or before the snapshot's steps: they were
+    reported before the interruption, and a second report, of a later model, would stand in
+    for them."""
     require("stable_baselines3")
     from stable_baselines3.common.callbacks import BaseCallback
 
@@ -139,6 +142,9 @@ def rung_callback(at: list[int], condition, episodes: int, hyper: dict, control_
         def __init__(self) -> None:
             super().__init__()
             self.pending = list(at)
+
+        def _on_training_start(self) -> None:
+            self.pending = [steps for steps in self.pending if steps > self.model.num_timesteps]
 
         def _on_step(self) -> bool:
             if self.pending and self.num_timesteps >= self.pending[0]:

@@ -76,3 +76,21 @@ def test_a_tiny_search_scores_its_trials_on_tuning_episodes_and_writes_the_best_
     zoo = yaml.safe_load((tmp_path / "rl_zoo.yml").read_text())[protocol.ENV_ID]
     assert zoo["policy"] == "MlpPolicy" and zoo["gamma"] == best["hyperparams"]["gamma"]
     assert zoo["policy_kwargs"].startswith("dict(net_arch=")
+
+
+def test_a_resumed_trial_reports_only_the_rungs_after_its_snapshot():
+    """Resumed at 250 steps (its snapshot), a trial scored at 125, 250 and 500 reports 500 only:
+    the earlier rungs were reported before the interruption."""
+    pytest.importorskip("stable_baselines3")
+    from types import SimpleNamespace
+
+    reports = []
+    callback = search.rung_callback([125, 250, 500], protocol.tuning("c11-starts", 1), 1, {}, "pd", reports.append)
+    model = SimpleNamespace(num_timesteps=250, get_env=lambda: None, logger=None)
+    callback.init_callback(model)
+    callback.on_training_start({}, {})
+    assert callback.pending == [500]
+    fresh = search.rung_callback([125, 250, 500], protocol.tuning("c11-starts", 1), 1, {}, "pd", reports.append)
+    fresh.init_callback(SimpleNamespace(num_timesteps=0, get_env=lambda: None, logger=None))
+    fresh.on_training_start({}, {})
+    assert fresh.pending == [125, 250, 500] and reports == []
