@@ -227,7 +227,7 @@ def run_search(run: str, out: Path, trials: int = 20, max_steps: int = 1_000_000
                            run_config=tune.RunConfig(name="search", storage_path=str(out / "ray"),
                                                      failure_config=tune.FailureConfig(max_failures=1)))
     results = tuner.fit()
-    record = search_record(run, registered, setup, space, results)
+    record = search_record(run, registered, setup, space, results, trials)
     out.mkdir(parents=True, exist_ok=True)
     write_json(out / "search.json", record)
     write_atomic(out / "search.md", search_markdown(record))
@@ -238,10 +238,14 @@ def run_search(run: str, out: Path, trials: int = 20, max_steps: int = 1_000_000
     return record
 
 
-def search_record(run: str, registered, setup: dict, space: dict, results) -> dict:
-    """Every trial of a finished search and the written rule's choice."""
+def search_record(run: str, registered, setup: dict, space: dict, results, trials_asked: int) -> dict:
+    """Every trial the search started and the written rule's choice among them. A search
+    interrupted (Ctrl-C; Ray keeps its state, and the same command resumes it) is recorded with
+    the trials it ran, its "trials_run" below "trials_asked"."""
     trials = []
     for result in results:
+        if result.config is None:  # a trial Ray had not started when the search was interrupted
+            continue
         history = result.metrics_dataframe
         rows = [] if history is None else [
             {k: (None if isinstance(v, float) and math.isnan(v) else v) for k, v in row.items()}
@@ -264,7 +268,7 @@ def search_record(run: str, registered, setup: dict, space: dict, results) -> di
             "space": {k: list(v) for k, v in space.items()}, "objective": objective.__doc__.split("\n\n")[0],
             "rule": "the highest objective at the largest rung reached, among the trials that reached it",
             "sampler": "Optuna TPE through Ray Tune's OptunaSearch; ASHA (reduction factor 2) stops trials early",
-            "best": best, "trials": trials}
+            "trials_asked": trials_asked, "trials_run": len(trials), "best": best, "trials": trials}
 
 
 def search_markdown(record: dict) -> str:
@@ -274,6 +278,7 @@ def search_markdown(record: dict) -> str:
              "point": json.dumps(t["point"], default=str)} for t in record["trials"]]
     best = "none" if record["best"] is None else record["trials"][record["best"]]["trial"]
     return (f"# Search: {record['run']} ({record['algorithm']}) on {record['env_id']}\n\n"
+            f"{record['trials_run']} of {record['trials_asked']} trials run. "
             f"Scored on {record['condition']}; rungs {record['rungs']}. {record['sampler']}. "
             f"Best ({record['rule']}): {best}.\n\n"
             + markdown_table(["trial", "ended", "steps", "objective", "success 1e-3", "point"], rows))

@@ -63,6 +63,7 @@ def test_a_tiny_search_scores_its_trials_on_tuning_episodes_and_writes_the_best_
     finally:
         search.SPACES["ppo"] = original
     assert len(record["trials"]) == 2 and record["rungs"] == [128, 256]
+    assert record["trials_asked"] == record["trials_run"] == 2
     assert record["condition"].startswith("c11-starts (tuning seeds)")
     for trial in record["trials"]:
         assert trial["ended"] in ("completed", "stopped by ASHA"), trial
@@ -94,3 +95,23 @@ def test_a_resumed_trial_reports_only_the_rungs_after_its_snapshot():
     fresh.init_callback(SimpleNamespace(num_timesteps=0, get_env=lambda: None, logger=None))
     fresh.on_training_start({}, {})
     assert fresh.pending == [125, 250, 500] and reports == []
+
+
+def test_an_interrupted_search_records_the_trials_it_started():
+    """Ray lists the trials it had not started when a search was interrupted with no config: the
+    record leaves them out and says how many of the asked trials ran."""
+    from types import SimpleNamespace
+
+    from agents.experiments.registry import spec
+
+    base = hyperparams_of("ppo-c11-starts", protocol.ENV_ID)
+    setup = {"env_id": protocol.ENV_ID, "control_mode": "pd", "base": base, "max_steps": 256, "grace_steps": 128,
+             "episodes": 2}
+    point = {"gamma_complement": 0.01}
+    started = SimpleNamespace(config={"point": point}, metrics_dataframe=None, path="/x/search/_trial_a", error=None)
+    waiting = SimpleNamespace(config=None, metrics_dataframe=None, path=None, error=None)
+    record = search.search_record("ppo-c11-starts", spec("ppo-c11-starts"), setup, search.SPACES["ppo"],
+                                  [started, waiting], trials_asked=20)
+    assert record["trials_run"] == 1 and record["trials_asked"] == 20
+    assert record["trials"][0]["hyperparams"]["gamma"] == pytest.approx(0.99) and record["best"] is None
+    assert "1 of 20 trials run" in search.search_markdown(record)
