@@ -42,6 +42,7 @@ from agents.experiments.comparison import ONLY_ROWS, SHIELDED, compare_in_parall
 from agents.experiments.curves import ONLY_CURVES, merge_curves, robustness_curves, write_curves
 from agents.experiments.evaluation import COLUMNS, evaluate, learned_runs
 from agents.experiments.learning_curves import learning_curve, run_folders
+from agents.experiments.mpc_search import tune_mpc
 from agents.experiments.registry import RUNS, spec
 from agents.experiments.report import comparison_figures, comparison_markdown, evaluation_report, markdown_table
 from agents.experiments.runs import campaign, hyperparams_of, train_run
@@ -355,6 +356,10 @@ def _add_compare(sub) -> None:
     p.add_argument("--merge", type=_file, default=None, metavar="FILE",
                    help="with --only: a comparison.json whose other entries are kept; its rows of those kinds are "
                         "replaced (new ones put beside their kind), and the command recorded in its 'refreshed_by'")
+    p.add_argument("--report-only", type=_file, default=None, metavar="FILE",
+                   help="evaluate nothing: a comparison.json whose targets, and comparison.md beside it under "
+                        "--out, are written anew from its entries (after a change to the report or the targets); "
+                        "the command recorded in its 'reported_by'")
     p.add_argument("--jobs", type=int, default=1, help="processes evaluating conditions side by side")
     p.add_argument("--shield", nargs="*", default=list(SHIELDED), metavar="NAME",
                    help="learned runs to evaluate behind the shield as well (none: --shield)")
@@ -374,7 +379,31 @@ def _add_compare(sub) -> None:
     p.set_defaults(handler=_compare)
 
 
+def _report_only(args, argv) -> list[dict]:
+    """compare --report-only FILE: the targets and the page of a published comparison, its entries as they are."""
+    if args.only or args.merge:
+        raise UserError("--report-only evaluates nothing: it takes no --only or --merge")
+    try:
+        data = json.loads(args.report_only.read_text())
+    except FileNotFoundError:
+        raise UserError(f"--report-only: no file {str(args.report_only)!r}") from None
+    except (ValueError, UnicodeDecodeError) as error:
+        raise UserError(f"--report-only: {args.report_only} is not JSON ({error})") from None
+    if not isinstance(data, dict) or not isinstance(data.get("policies"), list):
+        raise UserError(f"--report-only: {args.report_only} is not a comparison.json (it needs its 'policies')")
+    entries = data["policies"]
+    data = {**data, "targets": target_checks(entries), "reported_by": "scara-agents " + " ".join(argv)}
+    args.out.mkdir(parents=True, exist_ok=True)
+    write_json_lines(args.out / "comparison.json", data)
+    report = comparison_markdown(entries)
+    write_atomic(args.out / "comparison.md", report)
+    print(report)
+    return entries
+
+
 def _compare(args, argv) -> list[dict]:
+    if args.report_only is not None:
+        return _report_only(args, argv)
     if args.episodes is not None:
         _positive("--episodes", args.episodes)
     _positive("--jobs", args.jobs)
@@ -538,6 +567,30 @@ def _search(args, argv) -> dict:
     record = run_search(args.name, out, args.trials, args.max_steps, args.grace_steps, args.episodes, args.env_id,
                         args.control_mode, args.seed, args.cpus)
     print(f"{args.name}: {len(record['trials'])} trials, best {record['best']}; written to {out}")
+    return record
+
+
+def _add_tune_mpc(sub) -> None:
+    p = sub.add_parser("tune-mpc", help="the real-time MPC tuned under the learned baselines' written rule",
+                       description="Trials of the real-time MPC's horizon, margins and weights that Optuna proposes "
+                                   "(the first: the published configuration), each scored once on the tuning "
+                                   "episodes of c11-starts by the search's objective (agents.experiments.mpc_search): "
+                                   "trials.jsonl, search.json, search.md and best.json under --out; run again into the "
+                                   "same --out to go on.")
+    p.add_argument("--trials", type=int, default=20)
+    p.add_argument("--episodes", type=int, default=20, help="tuning episodes a trial")
+    p.add_argument("--control-mode", choices=MODES, default="voltage")
+    p.add_argument("--seed", type=int, default=0, help="the sampler's seed")
+    p.add_argument("--out", type=_folder, default=Path("runs/search/mpc-rti"))
+    p.set_defaults(handler=_tune_mpc)
+
+
+def _tune_mpc(args, argv) -> dict:
+    for flag in ("--trials", "--episodes"):
+        _positive(flag, getattr(args, flag[2:]))
+    require("casadi")
+    record = tune_mpc(args.out, args.trials, args.episodes, args.control_mode, args.seed)
+    print(f"mpc-rti: {record['trials_run']} trials, best {record['best']}; written to {args.out}")
     return record
 
 
@@ -728,7 +781,7 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--debug", action="store_true", help="show the traceback of an error")
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
     for add in (_add_evaluate, _add_train, _add_torch_ppo, _add_campaign, _add_compare, _add_curves,
-                _add_learning_curve, _add_search, _add_sweep,
+                _add_learning_curve, _add_search, _add_tune_mpc, _add_sweep,
                 _add_select, _add_optimal, _add_bench, _add_datasets):
         add(sub)
     return parser

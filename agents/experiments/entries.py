@@ -15,6 +15,8 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
+from agents.experiments.registry import RUNS, zero_shot
+
 KINDS = ("pd", "heuristic", "optimal", "mpc", "mpc-rti", "learned", "offline")
 """the kinds of row: PD, the seed paper's heuristic, the optimal replay, the MPC, the real-time MPC, a
 learned run, a run trained on an offline dataset"""
@@ -116,3 +118,15 @@ def shield_added(record: Mapping) -> bool:
     although its run does not act behind one itself."""
     return (record["kind"] in ("learned", "offline") and bool(record.get("shielded"))
             and "shielded" not in record.get("tags", ()))
+
+
+def is_zero_shot(record: Mapping) -> bool:
+    """Whether a learned or offline record is zero-shot (agents.experiments.registry.zero_shot):
+    scored in a training distribution's condition (c11-starts, random-targets, random-shifts) whose
+    draws its run never trained on. The registry says what a registered run trained on (so a
+    record published before a run's tags were completed reads them as they are now); the record's
+    own tags, for a run the registry does not hold."""
+    if record["kind"] not in ("learned", "offline"):
+        return False
+    registered = RUNS.get(record.get("run"))
+    return zero_shot(registered.tags if registered else record.get("tags", ()), record["condition"])

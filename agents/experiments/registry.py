@@ -42,6 +42,24 @@ TAGS = {
 """every tag a run may carry, and what it says"""
 
 
+TRAINING_DRAWS = {"perturbed-starts": "c11-starts", "random-targets": "random-targets",
+                  "domain-randomized": "random-shifts"}
+"""tag -> the protocol condition whose draws a run with that tag trained on. In these three conditions
+a learned row whose run trained on other draws is *zero-shot*: it measures transfer, not learning
+(issue 58 item 5), and the headline leaves it out (agents.experiments.entries.is_zero_shot)."""
+
+
+def trained_for(tags) -> frozenset[str]:
+    """The conditions of TRAINING_DRAWS whose draws a run with ``tags`` trained on."""
+    return frozenset(condition for tag, condition in TRAINING_DRAWS.items() if tag in tags)
+
+
+def zero_shot(tags, condition: str) -> bool:
+    """Whether a run with ``tags`` scored in ``condition`` is zero-shot there: the condition is one
+    of the training distributions (TRAINING_DRAWS) and the run never trained on its draws."""
+    return condition in TRAINING_DRAWS.values() and condition not in trained_for(tags)
+
+
 TRAINERS = ("sb3", "torch-ppo", "bc", "dagger")
 """the trainers a run may name"""
 
@@ -228,12 +246,12 @@ RUNS = _runs(
             tags=frozenset({"distilled", "residual", "perturbed-starts", "random-targets", "domain-randomized"})),
     RunSpec("bc-c11-expert", "bc", "behaviour cloning of scara/c11/expert-v0 (agents.experiments.datasets) in the "
             "residual set-point's space", fields={"dataset": "scara/c11/expert-v0", **RESIDUAL},
-            tags=frozenset({"offline", "residual"})),
+            tags=frozenset({"offline", "residual", "perturbed-starts"})),
     RunSpec("bc-c11-mixed", "bc", "behaviour cloning of scara/c11/mixed-v0 (the expert's and random episodes) in "
             "the residual set-point's space", fields={"dataset": "scara/c11/mixed-v0", **RESIDUAL},
-            tags=frozenset({"offline", "residual"})),
+            tags=frozenset({"offline", "residual", "perturbed-starts"})),
     RunSpec("bc-c11-expert-plain", "bc", "behaviour cloning of scara/c11/expert-v0 in the env's own actions",
-            fields={"dataset": "scara/c11/expert-v0"}, tags=frozenset({"pilot", "offline"})),
+            fields={"dataset": "scara/c11/expert-v0"}, tags=frozenset({"pilot", "offline", "perturbed-starts"})),
 )
 """every registered run, in the campaign's order"""
 

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
-from agents.experiments.entries import row_of
+from agents.experiments.entries import is_zero_shot, row_of
 from agents.experiments.evaluation import COLUMNS, DECISION_EPISODES
 from agents.experiments.statistics import episodes_of, interval_estimates, rate_claim, rate_text
 from agents.experiments.targets import target_checks
@@ -153,12 +153,15 @@ def verdicts(entries: list[dict]) -> str:
     policy behind a shield."""
     lines = ["#### Verdicts: the best classical and the best learned policy without a shield, per condition "
              "(success / collisions, time IQM, energy; the episodes with a collision of all its episodes, with "
-             "their 95 % Clopper-Pearson interval, seeds pooled), and the best behind a shield", "",
+             "their 95 % Clopper-Pearson interval, seeds pooled), and the best behind a shield; a learned policy "
+             "counts only where it is not zero-shot (in c11-starts, random-targets and random-shifts: trained on "
+             "that condition's draws)", "",
              "| condition | best classical | best learned | verdict | best behind a shield |", "|---|---|---|---|---|"]
     for name in dict.fromkeys(e["condition"] for e in entries):
         here = [e for e in entries if e["condition"] == name]
         classical = sorted((e for e in here if e["kind"] in CLASSICAL_KINDS and not e.get("shielded")), key=_rank)
-        learned = sorted((e for e in here if e["kind"] == "learned" and not e.get("shielded")), key=_rank)
+        learned = sorted((e for e in here if e["kind"] == "learned" and not e.get("shielded") and not is_zero_shot(e)),
+                         key=_rank)
         shielded = sorted((e for e in here if e.get("shielded")), key=_rank)
         if not classical or not learned:
             continue
@@ -197,7 +200,7 @@ def curve_figure(data: dict, path: Path) -> Path:
 
 
 HEADLINE_CONDITIONS = ("c11", "c11-starts", "random-targets", "random-shifts", "sensor-noise", "delay-1")
-"""the conditions of the README's headline table (overview(headline_entries(entries), HEADLINE_CONDITIONS))"""
+"""the conditions of the README's headline table (headline_overview)"""
 ABLATION_TAGS = frozenset({"interface-ablation"})
 """the registry tags of runs that answer a question about a design choice rather than compete:
 their rows are in the comparison's tables, not in the headline"""
@@ -208,10 +211,21 @@ def headline_entries(entries: list[dict]) -> list[dict]:
     return [e for e in entries if not ABLATION_TAGS & set(e.get("tags") or ())]
 
 
-def overview(entries: list[dict], conditions: tuple[str, ...] | None = None) -> str:
+ZERO_SHOT = "zero-shot"
+"""the mark of a zero-shot cell (agents.experiments.entries.is_zero_shot)"""
+
+
+def headline_overview(entries: list[dict]) -> str:
+    """The headline table (the README's and docs/comparison.md's): the overview of the headline
+    entries in HEADLINE_CONDITIONS, a zero-shot cell marked without its numbers."""
+    return overview(headline_entries(entries), HEADLINE_CONDITIONS, hide_zero_shot=True)
+
+
+def overview(entries: list[dict], conditions: tuple[str, ...] | None = None, hide_zero_shot: bool = False) -> str:
     """Every policy across the conditions (default: all of the entries'): time to target (IQM),
     with (success rate / collision rate) where not every episode succeeds without a collision;
-    "-" where none succeeds."""
+    "-" where none succeeds. A zero-shot cell is marked so; with ``hide_zero_shot`` (the headline)
+    the mark stands alone, without the numbers."""
     conditions = list(conditions or dict.fromkeys(e["condition"] for e in entries))
     lines = ["#### Overview: time to target, IQM (success rate / collision rate where not 1 / 0)", "",
              "| policy | " + " | ".join(conditions) + " |", "|---|" + "---|" * len(conditions)]
@@ -223,9 +237,13 @@ def overview(entries: list[dict], conditions: tuple[str, ...] | None = None) -> 
                 cells.append("n/a")
                 continue
             e = found[0]
+            if hide_zero_shot and is_zero_shot(e):
+                cells.append(ZERO_SHOT)
+                continue
             time_text = "-" if e["success_rate"] == 0 else f"{e['time_iqm']:.3f} s"
             clean = e["success_rate"] == 1.0 and e["collision_rate"] == 0.0
-            cells.append(time_text if clean else f"{time_text} ({rate_text(e['success_rate'])} / {rate_text(e['collision_rate'])})")
+            cell = time_text if clean else f"{time_text} ({rate_text(e['success_rate'])} / {rate_text(e['collision_rate'])})"
+            cells.append(f"{cell}, {ZERO_SHOT}" if is_zero_shot(e) else cell)
         lines.append(f"| {name} | " + " | ".join(cells) + " |")
     return "\n".join(lines) + "\n"
 
@@ -244,7 +262,8 @@ def condition_tables(entries: list[dict]) -> str:
             seeds = "-" if e["seeds"] is None else ",".join(map(str, e["seeds"]))
             p = e.get("probability_faster_than_heuristic")
             p_text = "-" if p is None else f"{p:.2f} [{e['probability_faster_ci'][0]:.2f}, {e['probability_faster_ci'][1]:.2f}]"
-            lines.append(f"| {e['name']} | {e['kind']} | {e['control_mode']} | {seeds} | {e['episodes']} | "
+            kind = f"{e['kind']}, {ZERO_SHOT}" if is_zero_shot(e) else e["kind"]
+            lines.append(f"| {e['name']} | {kind} | {e['control_mode']} | {seeds} | {e['episodes']} | "
                          f"{rate_text(e['success_rate'])} | {rate_text(e['collision_rate'])} | {e['time_iqm']:.4f} "
                          f"[{e['time_ci'][0]:.4f}, {e['time_ci'][1]:.4f}] | {e['energy_mean']:.1f} | {p_text} | "
                          f"{_decision_cell(e)} | {rate_claim(e['collision_rate'], episodes_of(e))} |")

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from agents.experiments.entries import is_heuristic
+from agents.experiments.entries import is_heuristic, is_zero_shot
 from agents.experiments.statistics import rate_text
 
 MINIMUM_TIME_BOUND = 1.2217
@@ -19,11 +19,42 @@ TRAINING_BUDGET = 1800.0
 TIME_SCORE_TARGET = 0.8
 """the normalized time score (IQM) the best learned policy reaches in each of TIME_SCORE_CONDITIONS"""
 TIME_SCORE_CONDITIONS = ("c11-starts", "random-targets", "random-shifts")
+STANDARD_TARGETS = (("c11-starts", 0.90, "each"), ("random-targets", 0.95, "best"), ("random-shifts", 0.95, "best"))
+"""issue 58's targets for the standard algorithms (registry tag "standard", no residual, no shield) trained on
+the condition's draws: (condition, success at the C11 band 1e-3 with 0 collisions, whether each algorithm
+or the best of them must reach it)"""
 
 
 def _find(entries, condition, kind=None, algorithm=None):
     return [e for e in entries if e["condition"] == condition and (kind is None or e["kind"] == kind)
             and (algorithm is None or e["algorithm"] == algorithm)]
+
+
+def _trained_learned(entries, condition) -> list[dict]:
+    """The learned rows without a shield in ``condition`` that are not zero-shot there."""
+    return [e for e in _find(entries, condition, "learned") if not e.get("shielded") and not is_zero_shot(e)]
+
+
+def _standard_checks(entries, check, summary) -> None:
+    """STANDARD_TARGETS: the standard algorithms (no residual, no shield) trained on each condition's draws."""
+    for condition, success, which in STANDARD_TARGETS:
+        standard = [e for e in _trained_learned(entries, condition)
+                    if "standard" in e.get("tags", ()) and "residual" not in e.get("tags", ())]
+        subject = "each standard algorithm" if which == "each" else "the best standard algorithm"
+        text = (f"{subject} (no residual, no shield) trained on the {condition} draws: >= {100 * success:.0f} % "
+                "success at the C11 band (1e-3), 0 collisions")
+        if not standard:
+            check(text, None, f"not evaluated: no standard run trained on the {condition} draws is in the comparison")
+            continue
+
+        def meets(e, success=success):
+            return e["success_rate"] >= success and e["collision_rate"] == 0.0
+
+        if which == "each":
+            check(text, all(meets(e) for e in standard), "; ".join(summary(e) for e in standard))
+        else:
+            best = min(standard, key=lambda e: (not meets(e), e["collision_rate"], -e["success_rate"], e["time_iqm"]))
+            check(text, meets(best), summary(best))
 
 
 def _clean_every_seed(e: dict, success: float = 1.0) -> bool:
@@ -80,12 +111,13 @@ def _mpc_checks(entries, check, summary) -> None:
 
 def _time_score_check(entries, check) -> None:
     """The best learned policy's normalized time score (IQM; 0 = pd + shield, 1 = the optimal replay or
-    the MPC) in each of TIME_SCORE_CONDITIONS; a condition without a scored learned entry is not evaluated."""
+    the MPC) in each of TIME_SCORE_CONDITIONS, zero-shot rows left out; a condition without a scored
+    learned entry is not evaluated."""
     text = (f"best learned policy's normalized time score >= {TIME_SCORE_TARGET} in "
             f"{', '.join(TIME_SCORE_CONDITIONS)} (IQM; 0 = pd + shield, 1 = the optimal replay or the MPC)")
     best = {}
     for name in TIME_SCORE_CONDITIONS:
-        scored = [e for e in _find(entries, name, "learned") if "time_score_iqm" in e]
+        scored = [e for e in _find(entries, name, "learned") if "time_score_iqm" in e and not is_zero_shot(e)]
         if scored:
             best[name] = max(scored, key=lambda e: e["time_score_iqm"])
     if not best:
@@ -133,8 +165,7 @@ def target_checks(entries: list[dict]) -> list[dict]:
     for condition, success, label in (("c11-starts", 0.99, "the C11 target from perturbed starts"),
                                       ("random-targets", 0.99, "randomized targets")):
         heuristic = [e for e in _find(entries, condition, "heuristic") if is_heuristic(e, "continue", "tuned")]
-        learned = [e for e in _find(entries, condition, "learned") if not e.get("shielded")]
-        best = _best_learned(learned, success)
+        best = _best_learned(_trained_learned(entries, condition), success)
         text = (f"best learned without a shield, {label}: >= {100 * success:.0f} % success, 0 collisions, IQM time "
                 "below the tuned heuristic's, energy <= 2x the heuristic's")
         if best and heuristic:
@@ -152,6 +183,7 @@ def target_checks(entries: list[dict]) -> list[dict]:
     else:
         check(text, None, "not evaluated")
     _time_score_check(entries, check)
+    _standard_checks(entries, check, summary)
     learned = _find(entries, "c11", "learned")
     # keyed by the runs' folder: a run also evaluated behind the shield is listed once
     seconds = {e["run"]: [s.get("train_seconds") for s in e["per_seed"]] for e in learned}

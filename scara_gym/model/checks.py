@@ -136,7 +136,7 @@ def real_array(name: str, value: Any, shape: tuple[int, ...], *, unit: str = "",
     array = np.ascontiguousarray(array, dtype=np.float64)
     if not np.isfinite(array).all():
         raise UserError(f"{what}, got {_show(array)}")
-    if low is not None and (np.any(array < low) or np.any(array > high)):
+    if (low is not None and np.any(array < low)) or (high is not None and np.any(array > high)):
         raise UserError(f"{what}, got {_show(array)}")
     return array
 

@@ -167,6 +167,9 @@ MISTAKES = [
     (["learning-curve", "ppo-c11-starts", "--episodes", "0"], "--episodes must be"),
     (["learning-curve", "ppo-c11-starts", "--runs", "/nonexistent"], "no finished run of ppo-c11-starts under"),
     # search
+    (["tune-mpc", "--trials", "0"], "--trials must be"),
+    (["tune-mpc", "--episodes", "-3"], "--episodes must be"),
+    (["tune-mpc", "--control-mode", "torque"], "--control-mode: invalid choice"),
     (["search", "torch-ppo"], "torch-ppo is not a registered SB3 run"),
     (["search", "ppo", "--trials", "0"], "--trials must be"),
     (["search", "ppo", "--grace-steps", "10", "--max-steps", "5"], "--grace-steps must be at most --max-steps"),

@@ -201,11 +201,13 @@ def _entry(condition, kind, algorithm=None, success=1.0, collisions=0.0, time=1.
 def test_target_checks_say_met_or_the_number_reached():
     entries = [_entry("c11", "optimal", time=1.2241, energy=43.0),
                _entry("c11", "learned", "sac", time=1.20, energy=500.0, seeds=[0, 1], train_seconds=2000)]
-    for condition in ("c11-starts", "random-targets"):
+    for condition in ("c11-starts", "random-targets"):  # runs trained on each condition's draws, and
+        # a zero-shot one (trained on the C11 start alone), clean and fastest, that the targets leave out
         entries += [{**_entry(condition, "heuristic", time=1.60, energy=70.0), "name": "dec-continue, tuned (d=0.07 m)",
                      "variant": "continue", "setting": "tuned"},  # the fields the targets read, not the label
-                    _entry(condition, "learned", "ppo", time=1.34, energy=60.0, seeds=[0, 1]),
-                    _entry(condition, "learned", "sac", success=0.5, time=1.20, energy=500.0, seeds=[0, 1])]
+                    _entry(condition, "learned", "ppo", time=1.10, energy=60.0, seeds=[0, 1]),
+                    _entry(condition, "learned", f"ppo-{condition}", time=1.34, energy=60.0, seeds=[0, 1]),
+                    _entry(condition, "learned", f"sac-{condition}", success=0.5, time=1.20, energy=500.0, seeds=[0, 1])]
     entries[-2]["success_rate"] = 0.98  # ppo misses on random targets
     entries += [{**_entry("c11-starts", "pd", collisions=0.0), "name": "pd + shield", "shielded": True},
                 {**_entry("delay-1", "pd", collisions=0.02), "name": "pd + shield", "shielded": True},
@@ -216,9 +218,17 @@ def test_target_checks_say_met_or_the_number_reached():
     shield = checks["shield"]
     assert shield["met"] is False and shield["reached"] == "pd + shield in delay-1: collisions 0.02"
     starts = checks["best learned without a shield, the C11 target from perturbed starts"]
-    assert starts["met"] is True and starts["reached"].startswith("ppo:")  # sac is faster but fails seeds
+    assert starts["met"] is True and starts["reached"].startswith("ppo-c11-starts:")  # sac is faster but fails seeds
     random = checks["best learned without a shield, randomized targets"]
-    assert random["met"] is False and "success 0.98" in random["reached"]
+    assert random["met"] is False and random["reached"].startswith("ppo-random-targets:")
+    assert "success 0.98" in random["reached"]
+    each = checks["each standard algorithm (no residual, no shield) trained on the c11-starts draws"]
+    assert each["met"] is False and "ppo-c11-starts: success 1.00" in each["reached"]  # and sac's 0.50
+    assert "sac-c11-starts: success 0.50" in each["reached"]
+    best = checks["the best standard algorithm (no residual, no shield) trained on the random-targets draws"]
+    assert best["met"] is True and best["reached"].startswith("ppo-random-targets: success 0.98")
+    shifts = checks["the best standard algorithm (no residual, no shield) trained on the random-shifts draws"]
+    assert shifts["met"] is None and "no standard run trained on the random-shifts draws" in shifts["reached"]
     assert checks["best learned without a shield under small sensor noise"]["met"] is True
     training_check = checks["each training run <= 30 min on 2 CPU cores"]
     assert training_check["met"] is False and "sac 33.3 min" in training_check["reached"]
@@ -341,13 +351,15 @@ def test_rates_keep_two_decimals_unless_that_hides_an_episode():
 def test_verdicts_name_the_best_classical_and_learned_policy_and_the_winner():
     entries = [_entry("c11-starts", "pd", collisions=1.0, success=0.0, time=3.0),
                {**_entry("c11-starts", "heuristic", time=1.60, energy=70.0), "name": "dec-continue, tuned"},
-               _entry("c11-starts", "learned", "ppo", time=1.40, energy=60.0, seeds=[0]),
-               _entry("c11-starts", "learned", "sac", success=0.9, collisions=0.1, time=1.20, seeds=[0]),
+               _entry("c11-starts", "learned", "ppo-c11-starts", time=1.40, energy=60.0, seeds=[0]),
+               _entry("c11-starts", "learned", "sac-c11-starts", success=0.9, collisions=0.1, time=1.20, seeds=[0]),
+               _entry("c11-starts", "learned", "torch-ppo", time=1.10, seeds=[0]),  # zero-shot: left out
                {**_entry("delay-1", "heuristic", success=0.2, collisions=0.8), "name": "dec-continue, tuned"},
                {**_entry("delay-1", "pd", time=1.5), "name": "pd + shield", "shielded": True},
                _entry("delay-1", "learned", "ppo", success=0.5, collisions=0.5, seeds=[0])]
     rows = report.verdicts(entries).splitlines()[4:]
-    assert rows[0].startswith("| c11-starts | dec-continue, tuned: 1.00 / 0.00, 1.600 s") and "| ppo: 1.00 / 0.00" in rows[0]
+    assert rows[0].startswith("| c11-starts | dec-continue, tuned: 1.00 / 0.00, 1.600 s")
+    assert "| ppo-c11-starts: 1.00 / 0.00" in rows[0]
     assert rows[0].endswith("| learned wins: 0.200 s faster | - |")
     assert rows[1].startswith("| delay-1 | dec-continue, tuned:") and "learned wins: collisions 0.50 vs 0.80" in rows[1]
     assert rows[1].endswith("| pd + shield: 1.00 / 0.00, 1.500 s, 70 J; collisions 0 of 30 (at most 11.6 %) |")
@@ -389,6 +401,23 @@ def test_the_curves_classical_points_come_back_from_the_cache(tmp_path, monkeypa
     assert curves.curve_points(shielded, {}, 1, cache=tmp_path, verbose=False) == first
 
 
+def test_a_zero_shot_cell_is_marked_in_the_tables_and_shows_no_numbers_in_the_headline():
+    """A learned run scored in a training distribution whose draws it never trained on measures
+    transfer: "zero-shot" beside its numbers in the full tables, alone in the headline."""
+    entries = [_entry(condition, "learned", run, success=0.5, time=2.0, seeds=[0])
+               for run in ("torch-ppo", "torch-ppo-residual-random-replay")
+               for condition in ("c11", "random-targets", "sensor-noise")]
+    full = report.overview(entries).splitlines()
+    headline = report.overview(entries, hide_zero_shot=True).splitlines()
+    assert full[4] == "| torch-ppo | 2.000 s (0.50 / 0.00) | 2.000 s (0.50 / 0.00), zero-shot | 2.000 s (0.50 / 0.00) |"
+    assert headline[4] == "| torch-ppo | 2.000 s (0.50 / 0.00) | zero-shot | 2.000 s (0.50 / 0.00) |"
+    assert full[5] == headline[5] == ("| torch-ppo-residual-random-replay | 2.000 s (0.50 / 0.00) | "
+                                      "2.000 s (0.50 / 0.00) | 2.000 s (0.50 / 0.00) |")  # trained on random targets
+    table = report.condition_tables([{**e, "time_ci": [1.9, 2.1], "seeds": [0], "per_seed": []}
+                                     for e in entries if e["condition"] == "random-targets"])
+    assert "| torch-ppo | learned, zero-shot | pd |" in table and "| torch-ppo-residual-random-replay | learned | pd |" in table
+
+
 def test_the_readme_headline_table_is_the_published_comparisons_overview():
     """README's results table is generated (agents.experiments.report.overview over the headline
     conditions) from docs/results/comparison.json, not copied by hand."""
@@ -400,8 +429,9 @@ def test_the_readme_headline_table_is_the_published_comparisons_overview():
     start, end = "<!-- headline table: generated -->\n", "<!-- end of the headline table -->"
     assert start in readme and end in readme
     table = readme[readme.index(start) + len(start):readme.index(end)]
-    overview = report.overview(report.headline_entries(entries), report.HEADLINE_CONDITIONS)
+    overview = report.headline_overview(entries)
     assert "torch-ppo-interface-relative" not in overview  # an ablation's row: in the full tables only
+    assert "| zero-shot |" in overview  # e.g. the SB3 rows trained on the C11 start, on random targets
     assert table.startswith(overview)  # and then its legend (docs/gen_pages.py's headline_legend)
     env_id = json.loads((root / "docs" / "results" / "comparison.json").read_text())["env_id"]
     assert table[len(overview):].startswith(f"\nScored on `{env_id}`: ")
@@ -521,6 +551,31 @@ def test_only_and_merge_put_one_kind_of_row_into_a_published_comparison(tmp_path
     monkeypatch.setattr(curves_module, "CURVES", {"load mass": ("arm.load_mass", (1.0, 3.0))})
     with pytest.raises(comparison.UserError, match="not today's"):
         curves_module.merge_curves(json.loads(path.read_text()), ["robust-shield"], verbose=False)
+
+
+def test_report_only_writes_the_targets_and_the_page_of_a_published_comparison_anew(tmp_path, capsys):
+    """``compare --report-only FILE``: no episode; the entries as published, the targets and
+    comparison.md written again from them (after a change to the report or the targets)."""
+    from agents.cli import run
+
+    entries = [{**e, "time_ci": [1.2, 1.4], "per_seed": []} for e in (_entry("c11", "optimal", time=1.2241, energy=43.0),
+                                                        _entry("random-targets", "learned", "ppo", time=1.3, seeds=[0]))]
+    path = tmp_path / "comparison.json"
+    path.write_text(json.dumps({"env_id": "x", "command": "scara-agents compare (published)", "conditions": {},
+                                "targets": [{"target": "an old one", "met": True, "reached": "-"}],
+                                "policies": entries}))
+    assert run(["compare", "--report-only", str(path), "--out", str(tmp_path / "out")]) == entries
+    written = json.loads((tmp_path / "out" / "comparison.json").read_text())
+    assert written["policies"] == entries and written["command"] == "scara-agents compare (published)"
+    assert written["targets"] == target_checks(entries) and written["reported_by"].startswith("scara-agents compare")
+    page = (tmp_path / "out" / "comparison.md").read_text()
+    assert "an old one" not in page and "| ppo | learned, zero-shot |" in page
+    for argv, says in ((["--only", "mpc"], "--report-only evaluates nothing"), ([], "is not a comparison.json")):
+        if not argv:
+            path.write_text(json.dumps({"policies": "none"}))
+        with pytest.raises(SystemExit):  # a user's mistake: one line, exit 2
+            run(["compare", "--report-only", str(path), *argv, "--out", str(tmp_path / "out")])
+        assert says in capsys.readouterr().err
 
 
 def test_merged_rows_go_beside_their_twin_or_their_kind_and_the_rest_is_kept():

@@ -4,7 +4,8 @@ import json
 
 import pytest
 
-from agents.experiments.entries import IDENTITY, Entry, is_heuristic, row_of, shield_added
+from agents.experiments import registry
+from agents.experiments.entries import IDENTITY, Entry, is_heuristic, is_zero_shot, row_of, shield_added
 
 
 def heuristic(**more) -> Entry:
@@ -50,3 +51,27 @@ def test_an_entry_that_contradicts_itself_is_refused(wrong, match):
               "condition": "c11", "env_id": "Scara-C11-v2", "variant": "continue", "setting": "tuned"}
     with pytest.raises(ValueError, match=match):
         Entry(**{**fields, **wrong})
+
+
+def test_zero_shot_is_a_training_distribution_whose_draws_the_run_never_trained_on():
+    assert registry.trained_for({"perturbed-starts", "residual"}) == {"c11-starts"}
+    assert not registry.zero_shot({"perturbed-starts"}, "c11-starts")
+    assert registry.zero_shot({"perturbed-starts"}, "random-targets") and registry.zero_shot((), "random-shifts")
+    assert not registry.zero_shot((), "c11") and not registry.zero_shot((), "sensor-noise")  # not a training draw
+
+    def record(kind, run, condition, tags=()):
+        return {"kind": kind, "run": run, "condition": condition, "tags": list(tags)}
+
+    assert is_zero_shot(record("learned", "ppo", "random-targets"))
+    assert not is_zero_shot(record("learned", "ppo-random-targets", "random-targets"))
+    assert not is_zero_shot(record("pd", None, "random-targets"))  # classical rows are never zero-shot
+    # a registered run: the registry's tags, whatever a record published before says (the BC runs
+    # learn from the c11 datasets, whose starts are drawn in the start region)
+    assert not is_zero_shot(record("offline", "bc-c11-expert", "c11-starts", tags=["offline", "residual"]))
+    assert is_zero_shot(record("offline", "bc-c11-expert", "random-targets"))
+    # a run the registry does not hold: its record's own tags
+    assert not is_zero_shot(record("learned", "my-run", "random-shifts", tags=["domain-randomized"]))
+    assert is_zero_shot(record("learned", "my-run", "random-shifts"))
+    for name, run in registry.RUNS.items():  # a learning-curve run trains on the draws it is scored on
+        if run.trained_on is not None:
+            assert run.trained_on in registry.trained_for(run.tags), name

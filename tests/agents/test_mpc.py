@@ -34,6 +34,9 @@ def test_infeasible_or_unsupported_configurations_are_refused_by_name():
             MPCConfig(**{field: value})
     with pytest.raises(ValueError, match="weights must be 3"):
         MPCConfig(weights=(1.0, 2.0))
+    with pytest.raises(ValueError, match=r"weights must be 3 finite numbers with every entry >= 0, got \[1.0, -2.0, 3.0\]"):
+        MPCConfig(weights=(1.0, -2.0, 3.0))
+    assert MPCConfig(weights=[1, 2, 3]).weights == (1.0, 2.0, 3.0)  # a lower bound alone: no upper one needed
     with pytest.raises(TypeError, match="params must be a ScaraParams"):
         MPCConfig(params={"arm.load_mass": 1.0})
     with pytest.raises(ValueError, match="the MPC is given as mpc"):

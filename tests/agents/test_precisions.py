@@ -134,23 +134,26 @@ def test_entries_kept_before_the_bands_get_no_precision_table():
 
 
 def test_the_time_score_target_names_the_best_learned_score_per_condition():
+    from agents.experiments.registry import TRAINING_DRAWS
     from agents.experiments.targets import TIME_SCORE_CONDITIONS, target_checks
 
-    def learned(condition, name, score):
+    def learned(condition, name, score, trained=True):  # a run of the user's, trained on the condition's draws
+        tags = [tag for tag, draws in TRAINING_DRAWS.items() if draws == condition] if trained else []
         return {"name": name, "kind": "learned", "algorithm": name, "condition": condition, "seeds": [0],
-                "success_rate": 1.0, "collision_rate": 0.0, "time_iqm": 1.4, "energy_mean": 1.0,
-                "time_score_iqm": score, "time_score_reference": "mpc", "per_seed": []}
+                "success_rate": 1.0, "collision_rate": 0.0, "time_iqm": 1.4, "energy_mean": 1.0, "run": name,
+                "tags": tags, "time_score_iqm": score, "time_score_reference": "mpc", "per_seed": []}
 
     def check(entries):
         return next(c for c in target_checks(entries) if c["target"].startswith("best learned policy's normalized"))
 
     entries = [learned(name, algo, score) for name in TIME_SCORE_CONDITIONS
-               for algo, score in (("sac", 0.5), ("ppo", 0.85))]
-    met = check(entries)
-    assert met["met"] is True and "random-shifts: ppo 0.85 (against mpc)" in met["reached"]
+               for algo, score in (("my-sac", 0.5), ("my-ppo", 0.85))]
+    zero_shot = [learned(name, "my-td3", 0.95, trained=False) for name in TIME_SCORE_CONDITIONS]
+    met = check(zero_shot + entries)  # the zero-shot rows are left out, however fast
+    assert met["met"] is True and "random-shifts: my-ppo 0.85 (against mpc)" in met["reached"]
     entries[-1]["time_score_iqm"] = 0.79  # ppo misses on random shifts: sac is no better there
     missed = check(entries)
-    assert missed["met"] is False and "random-shifts: ppo 0.79" in missed["reached"]
+    assert missed["met"] is False and "random-shifts: my-ppo 0.79" in missed["reached"]
     partial = check(entries[:2])
     assert partial["met"] is False and "not evaluated in random-targets, random-shifts" in partial["reached"]
     assert check([]) == {"target": check([])["target"], "met": None, "reached": "not evaluated"}
