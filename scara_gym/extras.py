@@ -20,6 +20,7 @@ EXTRAS = {
     "numba_cuda": "cuda", "numba.cuda": "cuda",
     "mkdocs": "docs", "material": "docs", "mkdocstrings": "docs",
     "moviepy": "render",
+    "rl_zoo3": "zoo",
 }
 """optional module -> the extra that installs it (a dotted name is looked up before its top level)"""
 

@@ -293,9 +293,12 @@ def write_yaml(path: Path, value: dict) -> Path:
 
 def rl_zoo_block(algo: str, hyper: dict, env_id: str) -> dict:
     """A block in RL Zoo's hyperparameter format (its policy_kwargs as a dict(...) string, its
-    normalize flag; the run's own bookkeeping left out)."""
+    normalize flag; the run's own bookkeeping left out). RL Zoo trains SB3's and sb3-contrib's
+    algorithms only: a block trained here on sbx-rl's (``library: sbx``) trains there on SB3's
+    implementation of the same algorithm, with the same settings."""
     skip = {"n_envs", "env_threads", "torch_threads", "eval_freq", "eval_episodes", "snapshot_freq",
-            "checkpoint_freq", "normalize", "net_arch", "log_std_init", "noise_std", "noise_type", "env_kwargs"}
+            "checkpoint_freq", "normalize", "net_arch", "log_std_init", "noise_std", "noise_type", "env_kwargs",
+            "library"}
     block = {"n_timesteps": hyper["n_timesteps"], "policy": "MlpPolicy", "n_envs": hyper.get("n_envs", 1)}
     block.update({k: v for k, v in hyper.items() if k not in skip and k != "n_timesteps"})
     normalize = hyper.get("normalize")

@@ -115,3 +115,28 @@ def test_an_interrupted_search_records_the_trials_it_started():
     assert record["trials_run"] == 1 and record["trials_asked"] == 20
     assert record["trials"][0]["hyperparams"]["gamma"] == pytest.approx(0.99) and record["best"] is None
     assert "1 of 20 trials run" in search.search_markdown(record)
+
+
+@pytest.mark.slow
+def test_the_rl_zoo_block_trains_in_rl_zoo(tmp_path):
+    """The tuned recipe in RL Zoo's format trains with RL Zoo's own command on the registered id;
+    an sbx block too (RL Zoo trains SB3's implementation of the same algorithm). PPO's block is
+    written the same way (the tiny search's test reads it)."""
+    pytest.importorskip("rl_zoo3")
+    import subprocess
+    import sys
+
+    for algo, run, tiny in (("sac", "sac-c11-starts", dict(learning_starts=100, buffer_size=1000)),):
+        hyper = {**hyperparams_of(run, protocol.ENV_ID), **tiny, "n_timesteps": 256}
+        block = search.rl_zoo_block(algo, hyper, protocol.ENV_ID)
+        assert "library" not in block and "snapshot_freq" not in block
+        conf = tmp_path / f"{algo}.yml"
+        search.write_yaml(conf, {protocol.ENV_ID: block})
+        done = subprocess.run([sys.executable, "-m", "rl_zoo3.train", "--algo", algo, "--env", protocol.ENV_ID,
+                               "--gym-packages", "scara_gym", "--conf-file", str(conf), "-f", str(tmp_path / "logs"),
+                               "--eval-freq", "-1", "--seed", "0"], capture_output=True, text=True, timeout=600,
+                              cwd=tmp_path)
+        assert done.returncode == 0, done.stderr[-3000:]
+        saved = tmp_path / "logs" / algo / f"{protocol.ENV_ID}_1"
+        assert (saved / f"{protocol.ENV_ID}.zip").is_file()
+        assert f"('gamma', {hyper['gamma']})" in done.stdout  # the hyperparameters RL Zoo says it trains with
