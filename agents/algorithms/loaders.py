@@ -11,6 +11,8 @@ A spec is ``KIND`` or ``KIND:ARG``:
 - ``sb3:DIR`` (any SB3 run: PPO, SAC, TD3), ``torchppo:DIR`` (a run of the single-file PPO),
   ``bc:DIR`` (a behaviour-cloning or DAgger run: the same MLP), ``ppo:NAME`` (a shipped model, e.g.
   ``ppo_pd``) or ``ppo:DIR``: the same runs with their trainer named;
+- ``zoo:DIR``: a model RL Zoo trained (``python -m rl_zoo3.train ... -f LOGS``: its folder
+  ``LOGS/ALGO/ENV_ID_N``, agents.algorithms.sb3.zoo);
 - ``shield:SPEC``: the policy of SPEC behind scara_gym.wrappers.Shield (e.g. ``shield:pd``).
 
 A known kind comes first: a folder named like one (``pd``) is given as ``./pd`` or ``run:pd``.
@@ -29,6 +31,7 @@ from collections.abc import Callable
 from pathlib import Path
 
 from agents.algorithms.sb3.policy import PPOPolicy, SB3Policy, resolve_model
+from agents.algorithms.sb3.zoo import ZooPolicy
 from agents.files import recorded_run
 from agents.policies import DecHeuristic, PDPolicy
 from agents.policies.mpc import MPCPolicy
@@ -38,7 +41,7 @@ from scara_gym.model.checks import UserError
 from scara_gym.wrappers import Shield
 
 POLICY_SPECS = ("pd, dec-continue[:d], dec-restart[:d], optimal, mpc, mpc-rti, RUN_DIR, run:RUN_DIR, "
-                "ppo:NAME_OR_DIR, sb3:RUN_DIR, torchppo:RUN_DIR, bc:RUN_DIR, shield:SPEC")
+                "ppo:NAME_OR_DIR, sb3:RUN_DIR, torchppo:RUN_DIR, bc:RUN_DIR, zoo:RL_ZOO_DIR, shield:SPEC")
 """the specs load_policy reads, as the command line's help and errors name them"""
 
 
@@ -127,6 +130,7 @@ LOADERS: dict[str, Callable] = {
     "sb3": _folder("sb3", SB3Policy),
     "torchppo": _folder("torchppo", _torch_ppo),
     "bc": _folder("bc", _bc),
+    "zoo": _folder("zoo", ZooPolicy),
     "shield": _shield,
 }
 """spec kind -> loader(env, ARG) of its policy (ARG: the text after the first colon, '' without one)"""

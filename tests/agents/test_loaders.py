@@ -16,7 +16,7 @@ from scara_gym.wrappers import Shield
 
 
 def test_every_spec_kind_has_its_loader_and_the_old_name_is_the_one_function():
-    assert {"pd", "dec-continue", "dec-restart", "optimal", "mpc", "mpc-rti", "run", "ppo", "sb3", "torchppo", "bc",
+    assert {"pd", "dec-continue", "dec-restart", "optimal", "mpc", "mpc-rti", "run", "ppo", "sb3", "torchppo", "bc", "zoo",
             "shield"} == set(LOADERS)
     assert set(TRAINERS.values()) <= set(LOADERS)
     assert make_policy is load_policy
@@ -97,3 +97,24 @@ def test_a_run_folder_of_sb3_pickle_loads_only_when_trusted_as_with_sb3_dir(tmp_
             load_policy(spec, env)
     monkeypatch.setenv(files.TRUST_ENV, "1")
     assert isinstance(load_policy(str(copy), env), SB3Policy)
+
+
+def test_rl_zoos_yaml_is_read_safely_its_ordered_dict_as_a_dict(tmp_path):
+    """RL Zoo's config.yml and args.yml carry Python's OrderedDict tag: read as the pairs it holds;
+    any other Python tag (which YAML's full loader would call) is refused, and nothing runs."""
+    pytest.importorskip("yaml")
+    from agents.algorithms.sb3.zoo import zoo_run, zoo_yaml
+    from scara_gym.model.checks import UserError
+
+    text = (b"!!python/object/apply:collections.OrderedDict\n- - - gamma\n    - 0.99\n"
+            b"  - - env_kwargs\n    - randomize_start: true\n")
+    assert zoo_yaml(tmp_path / "config.yml", text) == {"gamma": 0.99, "env_kwargs": {"randomize_start": True}}
+    marker = tmp_path / "ran"
+    evil = f"!!python/object/apply:os.system ['touch {marker}']\n".encode()
+    with pytest.raises(UserError, match="not a YAML file RL Zoo writes"):
+        zoo_yaml(tmp_path / "args.yml", evil)
+    assert not marker.exists()
+    with pytest.raises(UserError, match="not a YAML file RL Zoo writes"):
+        zoo_yaml(tmp_path / "args.yml", b"- a list\n")
+    with pytest.raises(FileNotFoundError, match="not a folder RL Zoo writes"):
+        zoo_run(tmp_path)
