@@ -36,6 +36,8 @@ TAGS = {
                           "set-point relative to the target, residual on the PD law's voltages)",
     "distilled": "distilled from an expert by DAgger at the states the network itself visits "
                  "(agents.algorithms.dagger; the expert: the real-time MPC)",
+    "tuned": "its recipe is the best trial of the hyperparameter search (agents.experiments.search), whose "
+             "record is published under results/search/",
     "constrained": "PPO-Lagrangian: the episode's collision cost held to cost_limit by a multiplier learned beside "
                    "the policy (agents.algorithms.torch_ppo_hooks.Lagrangian)",
 }
@@ -131,6 +133,16 @@ def _learning_curve_runs(algo: str, label: str, budget: str) -> list[RunSpec]:
             for condition, (note, tag) in CURVE_DRAWS.items()]
 
 
+def _tuned_runs(algo: str, label: str, budget: str) -> list[RunSpec]:
+    """The searched recipe of ``algo`` (its YAML block "pd-tuned-CONDITION": the best trial of
+    ``scara-agents search``, results/search/) trained on each condition of CURVE_DRAWS: the standard
+    algorithm's rows, whose first seeds' checkpoints are also its learning curve."""
+    return [RunSpec(f"{algo}-tuned-{condition}", "sb3", f"{label}, the searched recipe on {condition}' draws{note}, "
+                    f"{budget}", sb3_algorithm=algo, recipe=algo, variant=f"tuned-{condition}",
+                    tags=frozenset({"standard", "tuned", tag, "learning-curve"}), trained_on=condition)
+            for condition, (note, tag) in CURVE_DRAWS.items()]
+
+
 INTERFACES = {
     "absolute": ("the env's own set-point action (pd mode)", {}),
     "relative": ("a set-point relative to the target, target + (2.5 rad, 2.5 rad, 0.05 m) x r, no dead zone",
@@ -162,6 +174,7 @@ RUNS = _runs(
     *_learning_curve_runs("ppo", "SB3 PPO", "1e7 steps, a checkpoint every 250k"),
     *_learning_curve_runs("sac", "SAC (sbx-rl's)", "1e6 steps, a checkpoint every 62.5k"),
     *_learning_curve_runs("td3", "TD3 (sbx-rl's)", "1e6 steps, a checkpoint every 62.5k"),
+    *_tuned_runs("ppo", "SB3 PPO", "1e7 steps, a checkpoint every 250k"),
     RunSpec("ppo-residual", "sb3", "SB3 PPO through the residual set-point, ppo_residual.yml's reward",
             sb3_algorithm="ppo", recipe="ppo-residual", tags=frozenset({"engineered", "residual"})),
     RunSpec("ppo-residual-dr", "sb3", "ppo-residual with physics and wall drawn per episode (block pd-dr)",
