@@ -65,16 +65,6 @@ def mpc_config(point: dict) -> MPCConfig:
     return MPCConfig(**{**fields, "horizon": int(fields["horizon"])}, weights=tuple(scales * default_weights()))
 
 
-def _suggest(trial, space: dict) -> dict:
-    point = {}
-    for name, (kind, *args) in space.items():
-        if kind == "choice":
-            point[name] = trial.suggest_categorical(name, args[0])
-        else:
-            point[name] = trial.suggest_float(name, args[0], args[1], log=kind == "loguniform")
-    return point
-
-
 def score_point(point: dict, episodes: int, mode: str = "voltage") -> dict:
     """One trial: the real-time MPC at ``point`` on ``episodes`` tuning episodes of CONDITION;
     {"objective", "collision_rate", "success_BAND"..., "step_time_median", "step_time_p95"}."""

@@ -42,6 +42,14 @@ def resolve_model(name_or_path: str | Path) -> Path:
                             f"or a shipped model name {shipped_models()}")
 
 
+def load_model(algo: str, library: str, data: bytes):
+    """A saved model's bytes (already checked) as the model that acts: on the CPU, and for an
+    off-policy one a 1-entry plain replay buffer (acting needs none; a HER buffer would need the env)."""
+    replay = {"replay_buffer_class": None, "replay_buffer_kwargs": {}, "buffer_size": 1} \
+        if algo in OFF_POLICY else None
+    return algorithm_class(algo, library).load(io.BytesIO(data), device="cpu", custom_objects=replay)
+
+
 class SB3Policy:
     """A model saved by `train` (or a shipped one) as an obs -> action policy for one env."""
 
@@ -59,12 +67,7 @@ class SB3Policy:
             raise UserError(f"{model_dir} was trained in {trained_mode!r} mode, "
                             f"the environment is in {self.env.control_mode!r} mode")
         algo = config.get("algo", "ppo")
-        # acting needs no replay buffer: a 1-entry plain one (a HER buffer would need the env)
-        replay = {"replay_buffer_class": None, "replay_buffer_kwargs": {}, "buffer_size": 1} \
-            if algo in OFF_POLICY else None
-        library = config["hyperparams"].get("library", "sb3")
-        model = algorithm_class(algo, library).load(io.BytesIO(checked.bytes("model.zip")), device="cpu",
-                                           custom_objects=replay)
+        model = load_model(algo, config["hyperparams"].get("library", "sb3"), checked.bytes("model.zip"))
         normalizer = pickle.loads(checked.bytes("vecnormalize.pkl")) if "vecnormalize.pkl" in checked else None
         self._attach(model, normalizer, config["hyperparams"])
         self.config = config

@@ -15,14 +15,12 @@ is trusted (``--trust``; agents.files.require_trusted).
 
 from __future__ import annotations
 
-import io
 import pickle
 from pathlib import Path
 
 import gymnasium as gym
 
-from agents.algorithms.sb3.libraries import OFF_POLICY, algorithm_class
-from agents.algorithms.sb3.policy import SB3Policy
+from agents.algorithms.sb3.policy import SB3Policy, load_model
 from agents.files import require_trusted
 from scara_gym.envs.config import EnvConfig
 from scara_gym.extras import require
@@ -84,10 +82,7 @@ class ZooPolicy(SB3Policy):
         if trained_mode != self.env.control_mode:
             raise UserError(f"{run_dir} was trained in {trained_mode!r} mode, the environment is in "
                             f"{self.env.control_mode!r} mode")
-        replay = {"replay_buffer_class": None, "replay_buffer_kwargs": {}, "buffer_size": 1} \
-            if algo in OFF_POLICY else None
-        model = algorithm_class(algo, ZOO_LIBRARIES[algo]).load(io.BytesIO(checked.bytes(files[0])), device="cpu",
-                                                                 custom_objects=replay)
+        model = load_model(algo, ZOO_LIBRARIES[algo], checked.bytes(files[0]))
         normalizer = pickle.loads(checked.bytes(files[3])) if files[3] in checked else None
         self._attach(model, normalizer, {})
         self.config = {"algo": algo, "env_id": env_id, "hyperparams": config, "trained_by": "rl_zoo3"}
