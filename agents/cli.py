@@ -540,7 +540,8 @@ def _add_search(sub) -> None:
                        description="Trials of a registered SB3 run's block with points Optuna proposes, scored at "
                                    "doubling rungs on the tuning episodes of the condition it trains on, stopped "
                                    "early by ASHA (agents.experiments.search): search.json, search.md, best.yml and "
-                                   "rl_zoo.yml under --out; run again into the same --out to resume.")
+                                   "rl_zoo.yml under --out; run again into a folder holding its search.json (rewritten at "
+                                   "every rung) to resume, on any machine.")
     p.add_argument("name", metavar="NAME", help="a registered SB3 run (e.g. ppo-c11-starts)")
     p.add_argument("--trials", type=int, default=20)
     p.add_argument("--max-steps", type=int, default=1_000_000, help="a trial's budget (the last rung)")

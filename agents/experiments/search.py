@@ -15,13 +15,21 @@ Writes ``OUT/search.json`` (every trial: its point, its hyperparameters, every r
 how it ended), ``OUT/search.md`` (one row per trial) and the best trial's block twice: in the
 project's format (``OUT/best.yml``, a YAML block for agents/algorithms/sb3/hyperparams) and in
 RL Zoo's (``OUT/rl_zoo.yml``, for ``python -m rl_zoo3.train --algo ALGO --env ENV_ID
---gym-packages scara_gym --conf-file OUT/rl_zoo.yml``). Ray keeps its records under ``OUT/ray``;
-a search run again into the same ``OUT`` resumes there (Ray Tune's ``Tuner.restore``).
-Optuna and Ray are the ``sweep`` extra.
+--gym-packages scara_gym --conf-file OUT/rl_zoo.yml``). Optuna and Ray are the ``sweep`` extra.
+
+Resuming: ``OUT/search.json`` is rewritten at every rung and every trial's end, so it is the
+search's state, small enough to keep with the results and carried to another machine. A search
+run into an ``OUT`` that holds one resumes from it: the recorded trials are proposed again first
+(Optuna's enqueued points), and a trial that had ended (completed, stopped by ASHA, or failed)
+only reports its recorded rungs again, with no training, so that the sampler and ASHA see the
+search's history; a trial that was still running (``"ended": "running"``) trains again, from its
+snapshot where ``OUT/trials`` still holds one (its recorded rungs up to the snapshot reported
+again), from the start otherwise. The record keeps the recorded rungs of the trials it replays.
 """
 
 from __future__ import annotations
 
+import hashlib
 import json
 import math
 from pathlib import Path
@@ -129,12 +137,13 @@ def rungs(grace_steps: int, max_steps: int) -> list[int]:
     return [*out, int(max_steps)]
 
 
-def rung_callback(at: list[int], condition, episodes: int, hyper: dict, control_mode: str, report):
+def rung_callback(at: list[int], condition, episodes: int, hyper: dict, control_mode: str, report,
+                  recorded: list[dict] = ()):
     """An SB3 callback that scores the model in training at each of the steps ``at`` on the
     tuning set ``condition`` and hands {"steps", "objective", band figures} to ``report``. A trial
-    resumed from its snapshot skips the rungs at or before the snapshot's steps: they were
-    reported before the interruption, and a second report, of a later model, would stand in
-    for them."""
+    resumed from its snapshot skips the rungs at or before the snapshot's steps: they were scored
+    before the interruption, and a second score, of a later model, would stand in for them. Of
+    those, the ones in ``recorded`` (a resumed search's record) are reported again as recorded."""
     require("stable_baselines3")
     from stable_baselines3.common.callbacks import BaseCallback
 
@@ -144,6 +153,9 @@ def rung_callback(at: list[int], condition, episodes: int, hyper: dict, control_
             self.pending = list(at)
 
         def _on_training_start(self) -> None:
+            for row in recorded:
+                if row["steps"] <= self.model.num_timesteps:
+                    report(dict(row))
             self.pending = [steps for steps in self.pending if steps > self.model.num_timesteps]
 
         def _on_step(self) -> bool:
@@ -165,20 +177,34 @@ def rung_figures(steps: int, result: dict) -> dict:
     return figures
 
 
+def point_key(point: dict) -> str:
+    """A search point as a string, the same for the same values: how a resumed search finds a
+    recorded trial among the points Ray hands its trials, and the name of its training folder."""
+    return json.dumps({k: point[k] for k in sorted(point)}, default=str)
+
+
 def _trial(config: dict) -> None:
-    """Ray Tune's trainable: one trial trained to max_steps, scored at every rung."""
+    """Ray Tune's trainable: one trial trained to max_steps, scored at every rung; or, for a
+    trial the resumed record says had ended, its recorded rungs reported again."""
     require("ray")
     from ray import tune
 
     setup = config["setup"]
+    recorded = setup["recorded"].get(point_key(config["point"]))
+    if recorded is not None and recorded["ended"] != "running":
+        for row in recorded["rungs"]:
+            tune.report(dict(row))
+        if recorded["ended"] == "error":
+            raise RuntimeError(f"trial {recorded['trial']} ended in an error in the resumed search")
+        return
     hyper = trial_hyperparams(setup["run"], setup["env_id"], setup["control_mode"], config["point"], setup["base"])
-    out = Path(setup["out"]) / "trials" / tune.get_context().get_trial_id()
+    folder = hashlib.sha256(point_key(config["point"]).encode()).hexdigest()[:16]
     run = spec(setup["run"])
     condition = tuning(run.trained_on or "c11-starts", setup["episodes"])
     callback = rung_callback(rungs(setup["grace_steps"], setup["max_steps"]), condition, setup["episodes"], hyper,
-                             setup["control_mode"], tune.report)
-    train_sb3(run.sb3_algorithm, out, setup["env_id"], setup["control_mode"], setup["seed"], hyper,
-              setup["max_steps"], resume=True, callbacks=[callback])
+                             setup["control_mode"], tune.report, recorded["rungs"] if recorded else ())
+    train_sb3(run.sb3_algorithm, Path(setup["out"]) / "trials" / folder, setup["env_id"], setup["control_mode"],
+              setup["seed"], hyper, setup["max_steps"], resume=True, callbacks=[callback])
 
 
 def _ray_space(space: dict) -> dict:
@@ -189,12 +215,30 @@ def _ray_space(space: dict) -> dict:
             for name, (kind, *args) in space.items()}
 
 
+def _prior_record(path: Path, setup: dict, space: dict) -> dict | None:
+    """The record a search resumes from, checked to be of the same search."""
+    if not path.is_file():
+        return None
+    prior = json.loads(path.read_text())
+    mine = {"run": setup["run"], "env_id": setup["env_id"], "control_mode": setup["control_mode"],
+            "max_steps": setup["max_steps"], "rungs": rungs(setup["grace_steps"], setup["max_steps"]),
+            "space": {k: list(v) for k, v in space.items()}}
+    for name, value in mine.items():
+        if prior.get(name) != value:
+            raise UserError(f"{path} records another search ({name} {prior.get(name)!r}, this one {value!r}); "
+                            f"give another --out, or the same settings to resume it")
+    if not prior["condition"].endswith(f", {setup['episodes']} episodes a rung"):
+        raise UserError(f"{path} records another search ({prior['condition']}); resume it with the same --episodes")
+    return prior
+
+
 def run_search(run: str, out: Path, trials: int = 20, max_steps: int = 1_000_000, grace_steps: int = 125_000,
                episodes: int = 20, env_id: str = ENV_ID, control_mode: str = "pd", seed: int = 0,
                num_cpus: int | None = None, base: dict | None = None) -> dict:
-    """Search ``trials`` points of the registered SB3 run ``run``'s algorithm (module docstring);
-    returns the record written to OUT/search.json. ``base``: the block the points change (default:
-    the run's own; a test gives a tiny one)."""
+    """Search ``trials`` points of the registered SB3 run ``run``'s algorithm, resuming from
+    OUT/search.json where it holds a record of the same search (module docstring); returns the
+    record written to OUT/search.json. ``base``: the block the points change (default: the run's
+    own; a test gives a tiny one)."""
     require("optuna")
     require("ray")
     import ray
@@ -212,25 +256,29 @@ def run_search(run: str, out: Path, trials: int = 20, max_steps: int = 1_000_000
     setup = {"run": run, "env_id": env_id, "control_mode": control_mode, "seed": seed, "episodes": episodes,
              "max_steps": max_steps, "grace_steps": grace_steps, "out": str(out), "base": base}
     trial_hyperparams(run, env_id, control_mode, {}, base)  # the base block checked before Ray starts
+    prior = _prior_record(out / "search.json", setup, space)
+    recorded = [] if prior is None else prior["trials"]
+    if len(recorded) > trials:
+        raise UserError(f"--trials must be at least the {len(recorded)} trials {out / 'search.json'} records, "
+                        f"got {trials}")
+    setup["recorded"] = {point_key(t["point"]): t for t in recorded}
+    log = SearchLog(run, registered, setup, space, trials, out, recorded)
     if not ray.is_initialized():
         ray.init(num_cpus=num_cpus, include_dashboard=False, log_to_driver=False)
-    trainable = tune.with_resources(_trial, {"cpu": 1})
-    experiment = out / "ray" / "search"
-    if tune.Tuner.can_restore(experiment):
-        tuner = tune.Tuner.restore(str(experiment), trainable, resume_errored=True)
-    else:
-        scheduler = ASHAScheduler(time_attr="steps", max_t=max_steps, grace_period=grace_steps, reduction_factor=2)
-        searcher = OptunaSearch(seed=seed)
-        tuner = tune.Tuner(trainable, param_space={"point": _ray_space(space), "setup": setup},
-                           tune_config=tune.TuneConfig(metric="objective", mode="max", search_alg=searcher,
-                                                       scheduler=scheduler, num_samples=trials),
-                           run_config=tune.RunConfig(name="search", storage_path=str(out / "ray"),
-                                                     failure_config=tune.FailureConfig(max_failures=1)))
-    results = tuner.fit()
-    record = search_record(run, registered, setup, space, results, trials)
-    out.mkdir(parents=True, exist_ok=True)
-    write_json(out / "search.json", record)
-    write_atomic(out / "search.md", search_markdown(record))
+    attempt = 1 + sum(1 for _ in (out / "ray").glob("search-*")) if (out / "ray").is_dir() else 1
+    scheduler = ASHAScheduler(time_attr="steps", max_t=max_steps, grace_period=grace_steps, reduction_factor=2)
+    # the seed moved on by the trials recorded: the same seed would draw the recorded random points again
+    searcher = OptunaSearch(seed=seed + len(recorded), points_to_evaluate=[{f"point/{k}": v for k, v in t["point"].items()}
+                                                           for t in recorded] or None)
+    tuner = tune.Tuner(tune.with_resources(_trial, {"cpu": 1}),
+                       param_space={"point": _ray_space(space), "setup": setup},
+                       tune_config=tune.TuneConfig(metric="objective", mode="max", search_alg=searcher,
+                                                   scheduler=scheduler, num_samples=trials),
+                       run_config=tune.RunConfig(name=f"search-{attempt}", storage_path=str(out / "ray"),
+                                                 callbacks=[log.ray_callback()],
+                                                 failure_config=tune.FailureConfig(max_failures=1)))
+    tuner.fit()
+    record = log.write()
     if record["best"] is not None:
         best = record["trials"][record["best"]]["hyperparams"]
         write_yaml(out / "best.yml", {env_id: {f"{control_mode}-tuned": best}})
@@ -238,28 +286,91 @@ def run_search(run: str, out: Path, trials: int = 20, max_steps: int = 1_000_000
     return record
 
 
-def search_record(run: str, registered, setup: dict, space: dict, results, trials_asked: int) -> dict:
-    """Every trial the search started and the written rule's choice among them. A search
-    interrupted (Ctrl-C; Ray keeps its state, and the same command resumes it) is recorded with
-    the trials it ran, its "trials_run" below "trials_asked"."""
-    trials = []
-    for result in results:
-        if result.config is None:  # a trial Ray had not started when the search was interrupted
-            continue
-        history = result.metrics_dataframe
-        rows = [] if history is None else [
-            {k: (None if isinstance(v, float) and math.isnan(v) else v) for k, v in row.items()}
-            for row in history[[c for c in history.columns if c == "steps" or c == "objective" or c == "collision_rate"
-                                or c.startswith("success_")]].to_dict("records")]
-        point = result.config["point"]
-        trials.append({"trial": result.path.rsplit("/", 1)[-1] if result.path else None, "point": point,
-                       "hyperparams": trial_hyperparams(run, setup["env_id"], setup["control_mode"], point,
-                                                        setup["base"]),
-                       "rungs": rows, "steps": rows[-1]["steps"] if rows else 0,
-                       "ended": "error" if result.error else ("completed" if rows and rows[-1]["steps"] >= setup["max_steps"]
-                                                             else "stopped by ASHA")})
-    reached = max((t["steps"] for t in trials), default=0)
-    finalists = [i for i, t in enumerate(trials) if t["steps"] == reached and t["rungs"] and not t["ended"] == "error"]
+RUNG_KEYS = ("steps", "objective", "collision_rate", *(f"success_{band}" for band in BAND_NAMES))
+
+
+class SearchLog:
+    """The search's record as it goes: every trial in the order Ray started it, its rungs as they
+    are reported, how it ended; OUT/search.json and OUT/search.md rewritten at each event, so
+    that a search killed at any instant leaves the record of every rung it scored. Trials of a
+    resumed record keep their recorded rungs."""
+
+    def __init__(self, run: str, registered, setup: dict, space: dict, trials_asked: int, out: Path,
+                 recorded: list[dict] = ()) -> None:
+        self.run, self.registered, self.setup, self.space = run, registered, setup, space
+        self.trials_asked, self.out = trials_asked, out
+        self.recorded = {point_key(t["point"]): t for t in recorded}
+        self.trials: dict[str, dict] = {}
+
+    def started(self, trial_id: str, name: str, point: dict) -> None:
+        prior = self.recorded.get(point_key(point))
+        if prior is not None and prior["ended"] != "running":
+            self.trials[trial_id] = {**prior, "replayed": True}
+        else:
+            self.trials[trial_id] = {"trial": prior["trial"] if prior else name, "point": point, "rungs": [],
+                                     "steps": 0, "ended": "running"}
+        self.write()
+
+    def rung(self, trial_id: str, result: dict) -> None:
+        entry = self.trials.get(trial_id)
+        if entry is None or entry.get("replayed") or "objective" not in result:
+            return
+        row = {k: (None if isinstance(result.get(k), float) and math.isnan(result[k]) else result.get(k))
+               for k in RUNG_KEYS}
+        entry["rungs"] = [r for r in entry["rungs"] if r["steps"] < row["steps"]] + [row]
+        entry["steps"] = row["steps"]
+        self.write()
+
+    def ended(self, trial_id: str, error: bool = False) -> None:
+        entry = self.trials.get(trial_id)
+        if entry is None or entry.get("replayed"):
+            return
+        entry["ended"] = "error" if error else (
+            "completed" if entry["steps"] >= self.setup["max_steps"] else "stopped by ASHA")
+        self.write()
+
+    def write(self) -> dict:
+        entries = [{k: v for k, v in t.items() if k != "replayed"} for t in self.trials.values()]
+        record = search_record(self.run, self.registered, self.setup, self.space, entries, self.trials_asked)
+        self.out.mkdir(parents=True, exist_ok=True)
+        write_json(self.out / "search.json", record)
+        write_atomic(self.out / "search.md", search_markdown(record))
+        return record
+
+    def ray_callback(self):
+        """The Ray Tune callback that feeds this log."""
+        from ray.tune import Callback
+
+        log = self
+
+        class Feed(Callback):
+            def on_trial_start(self, iteration, trials, trial, **info):
+                log.started(trial.trial_id, Path(str(getattr(trial, "path", None) or trial.trial_id)).name,
+                            trial.config["point"])
+
+            def on_trial_result(self, iteration, trials, trial, result, **info):
+                log.rung(trial.trial_id, result)
+
+            def on_trial_complete(self, iteration, trials, trial, **info):
+                log.ended(trial.trial_id)
+
+            def on_trial_error(self, iteration, trials, trial, **info):
+                log.ended(trial.trial_id, error=True)
+
+        return Feed()
+
+
+def search_record(run: str, registered, setup: dict, space: dict, entries: list[dict], trials_asked: int) -> dict:
+    """Every trial the search started (``entries``: trial, point, rungs, steps, ended) and the
+    written rule's choice among the ended ones. A search interrupted or killed is recorded with
+    the trials it started, its "trials_run" below "trials_asked", and the trials it was still
+    training marked "running"."""
+    trials = [{"trial": t["trial"], "point": t["point"],
+               "hyperparams": trial_hyperparams(run, setup["env_id"], setup["control_mode"], t["point"], setup["base"]),
+               "rungs": t["rungs"], "steps": t["steps"], "ended": t["ended"]} for t in entries]
+    ended = [t for t in trials if t["ended"] in ("completed", "stopped by ASHA")]
+    reached = max((t["steps"] for t in ended), default=0)
+    finalists = [i for i, t in enumerate(trials) if t in ended and t["steps"] == reached and t["rungs"]]
     best = max(finalists, key=lambda i: trials[i]["rungs"][-1]["objective"]) if finalists else None
     return {"run": run, "algorithm": registered.sb3_algorithm, "env_id": setup["env_id"],
             "control_mode": setup["control_mode"],
@@ -268,7 +379,8 @@ def search_record(run: str, registered, setup: dict, space: dict, results, trial
             "space": {k: list(v) for k, v in space.items()}, "objective": objective.__doc__.split("\n\n")[0],
             "rule": "the highest objective at the largest rung reached, among the trials that reached it",
             "sampler": "Optuna TPE through Ray Tune's OptunaSearch; ASHA (reduction factor 2) stops trials early",
-            "trials_asked": trials_asked, "trials_run": len(trials), "best": best, "trials": trials}
+            "trials_asked": trials_asked, "trials_run": sum(t["ended"] != "running" for t in trials),
+            "best": best, "trials": trials}
 
 
 def search_markdown(record: dict) -> str:

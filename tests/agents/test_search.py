@@ -67,7 +67,7 @@ def test_a_tiny_search_scores_its_trials_on_tuning_episodes_and_writes_the_best_
     assert record["condition"].startswith("c11-starts (tuning seeds)")
     for trial in record["trials"]:
         assert trial["ended"] in ("completed", "stopped by ASHA"), trial
-        assert [r["steps"] >= 128 for r in trial["rungs"]] and -0.031 <= trial["rungs"][0]["objective"] <= 1
+        assert all(r["steps"] >= 128 for r in trial["rungs"]) and -0.031 <= trial["rungs"][0]["objective"] <= 1
     best = record["trials"][record["best"]]
     assert best["steps"] == max(t["steps"] for t in record["trials"])
     written = json.loads((tmp_path / "search.json").read_text())
@@ -77,6 +77,26 @@ def test_a_tiny_search_scores_its_trials_on_tuning_episodes_and_writes_the_best_
     zoo = yaml.safe_load((tmp_path / "rl_zoo.yml").read_text())[protocol.ENV_ID]
     assert zoo["policy"] == "MlpPolicy" and zoo["gamma"] == best["hyperparams"]["gamma"]
     assert zoo["policy_kwargs"].startswith("dict(net_arch=")
+
+    # resumed on "another machine" (Ray's state gone, the record kept) with one trial more: the
+    # two recorded trials are replayed from the record, not trained again, and one is new
+    import shutil
+    shutil.rmtree(tmp_path / "ray")
+    trained = sorted(p.name for p in (tmp_path / "trials").iterdir())
+    stamps = {p: p.stat().st_mtime_ns for p in (tmp_path / "trials").rglob("*") if p.is_file()}
+    search.SPACES["ppo"] = space
+    try:
+        resumed = search.run_search("ppo-c11-starts", tmp_path, trials=3, max_steps=256, grace_steps=128, episodes=2,
+                                    num_cpus=2, base=base)
+        with pytest.raises(search.UserError, match="--trials"):
+            search.run_search("ppo-c11-starts", tmp_path, trials=2, max_steps=256, grace_steps=128, episodes=2,
+                              num_cpus=2, base=base)
+    finally:
+        search.SPACES["ppo"] = original
+    assert resumed["trials"][:2] == record["trials"] and resumed["trials_run"] == 3
+    assert resumed["trials"][2]["point"] not in [t["point"] for t in record["trials"]]
+    assert all(p.stat().st_mtime_ns == stamp for p, stamp in stamps.items())
+    assert len(set(p.name for p in (tmp_path / "trials").iterdir()) - set(trained)) == 1
 
 
 def test_a_resumed_trial_reports_only_the_rungs_after_its_snapshot():
@@ -95,26 +115,82 @@ def test_a_resumed_trial_reports_only_the_rungs_after_its_snapshot():
     fresh.init_callback(SimpleNamespace(num_timesteps=0, get_env=lambda: None, logger=None))
     fresh.on_training_start({}, {})
     assert fresh.pending == [125, 250, 500] and reports == []
+    # a trial of a resumed search's record that was running when it was interrupted: its recorded
+    # rungs up to the snapshot reported again, the later one (scored after the snapshot) not
+    recorded = [{"steps": 125, "objective": 0.1}, {"steps": 250, "objective": 0.2}, {"steps": 500, "objective": 0.3}]
+    resumed = search.rung_callback([125, 250, 500, 1000], protocol.tuning("c11-starts", 1), 1, {}, "pd",
+                                   reports.append, recorded)
+    resumed.init_callback(SimpleNamespace(num_timesteps=250, get_env=lambda: None, logger=None))
+    resumed.on_training_start({}, {})
+    assert reports == recorded[:2] and resumed.pending == [500, 1000]
 
 
-def test_an_interrupted_search_records_the_trials_it_started():
-    """Ray lists the trials it had not started when a search was interrupted with no config: the
-    record leaves them out and says how many of the asked trials ran."""
-    from types import SimpleNamespace
-
+def _tiny_log(tmp_path, recorded=()):
     from agents.experiments.registry import spec
 
     base = hyperparams_of("ppo-c11-starts", protocol.ENV_ID)
-    setup = {"env_id": protocol.ENV_ID, "control_mode": "pd", "base": base, "max_steps": 256, "grace_steps": 128,
-             "episodes": 2}
-    point = {"gamma_complement": 0.01}
-    started = SimpleNamespace(config={"point": point}, metrics_dataframe=None, path="/x/search/_trial_a", error=None)
-    waiting = SimpleNamespace(config=None, metrics_dataframe=None, path=None, error=None)
-    record = search.search_record("ppo-c11-starts", spec("ppo-c11-starts"), setup, search.SPACES["ppo"],
-                                  [started, waiting], trials_asked=20)
-    assert record["trials_run"] == 1 and record["trials_asked"] == 20
-    assert record["trials"][0]["hyperparams"]["gamma"] == pytest.approx(0.99) and record["best"] is None
-    assert "1 of 20 trials run" in search.search_markdown(record)
+    setup = {"run": "ppo-c11-starts", "env_id": protocol.ENV_ID, "control_mode": "pd", "base": base,
+             "max_steps": 256, "grace_steps": 128, "episodes": 2}
+    return search.SearchLog("ppo-c11-starts", spec("ppo-c11-starts"), setup, search.SPACES["ppo"], 20, tmp_path,
+                            recorded)
+
+
+def _rung(steps, objective):
+    return {"steps": steps, "objective": objective, "collision_rate": 0.0,
+            **{f"success_{band}": 0.5 for band in search.BAND_NAMES}, "training_iteration": 3}
+
+
+def test_the_search_record_on_disk_follows_every_rung_so_a_killed_search_loses_nothing_scored(tmp_path):
+    log = _tiny_log(tmp_path)
+    on_disk = lambda: json.loads((tmp_path / "search.json").read_text())  # noqa: E731
+    log.started("a", "_trial_a", {"gamma_complement": 0.01})
+    assert on_disk()["trials"][0]["ended"] == "running" and on_disk()["trials_run"] == 0
+    log.rung("a", _rung(128, 0.2))
+    assert on_disk()["trials"][0]["rungs"] == [{k: v for k, v in _rung(128, 0.2).items() if k != "training_iteration"}]
+    log.started("b", "_trial_b", {"gamma_complement": 0.02})
+    log.rung("b", _rung(128, 0.1))
+    log.ended("b")  # ASHA stopped it at its first rung
+    log.rung("a", _rung(256, 0.4))
+    record = on_disk()
+    assert [t["ended"] for t in record["trials"]] == ["running", "stopped by ASHA"]
+    assert record["trials"][0]["hyperparams"]["gamma"] == pytest.approx(0.99) and record["trials_asked"] == 20
+    assert record["best"] == 1  # only an ended trial is chosen
+    assert "1 of 20 trials run" in (tmp_path / "search.md").read_text()
+    log.ended("a")
+    assert on_disk()["trials"][0]["ended"] == "completed" and on_disk()["best"] == 0
+
+
+def test_a_resumed_search_keeps_the_recorded_rungs_of_the_trials_it_replays(tmp_path):
+    ended = {"trial": "_trial_old", "point": {"gamma_complement": 0.01}, "rungs": [_rung(128, 0.3)], "steps": 128,
+             "ended": "stopped by ASHA"}
+    running = {"trial": "_trial_cut", "point": {"gamma_complement": 0.02}, "rungs": [_rung(128, 0.5)], "steps": 128,
+               "ended": "running"}
+    log = _tiny_log(tmp_path, [ended, running])
+    log.started("x", "_trial_x", {"gamma_complement": 0.01})
+    log.rung("x", _rung(128, -0.03))  # what the replay reports is not what the record keeps
+    log.ended("x")
+    log.started("y", "_trial_y", {"gamma_complement": 0.02})  # trains again
+    record = json.loads((tmp_path / "search.json").read_text())
+    assert record["trials"][0]["trial"] == "_trial_old" and record["trials"][0]["rungs"][0]["objective"] == 0.3
+    assert record["trials"][1]["trial"] == "_trial_cut" and record["trials"][1]["rungs"] == []
+    assert record["trials"][1]["ended"] == "running"
+
+
+def test_a_search_resumes_only_a_record_of_the_same_search(tmp_path):
+    with pytest.raises(search.UserError, match="max_steps"):
+        search._prior_record(_write_record(tmp_path, max_steps=512), _tiny_log(tmp_path).setup,
+                             search.SPACES["ppo"])
+    setup = dict(_tiny_log(tmp_path).setup, episodes=5)
+    with pytest.raises(search.UserError, match="--episodes"):
+        search._prior_record(_write_record(tmp_path), setup, search.SPACES["ppo"])
+    assert search._prior_record(tmp_path / "none.json", setup, search.SPACES["ppo"]) is None
+
+
+def _write_record(tmp_path, **change):
+    log = _tiny_log(tmp_path)
+    log.setup = dict(log.setup, **change)
+    log.write()
+    return tmp_path / "search.json"
 
 
 @pytest.mark.slow
