@@ -76,7 +76,7 @@ class RunSpec:
     (agents.algorithms.bc: behaviour cloning of ``dataset``) or "dagger" (agents.algorithms.dagger)"""
     description: str
     sb3_algorithm: str | None = None
-    """SB3's algorithm class: "ppo", "sac" or "td3" (trainer "sb3")"""
+    """SB3's algorithm class: "ppo", "sac", "td3" or "tqc" (trainer "sb3")"""
     recipe: str | None = None
     """the hyperparameter file (agents.algorithms.sb3.hyperparams.FILES; trainer "sb3")"""
     variant: str | None = None
@@ -174,6 +174,7 @@ RUNS = _runs(
     *_learning_curve_runs("ppo", "SB3 PPO", "1e7 steps, a checkpoint every 250k"),
     *_learning_curve_runs("sac", "SAC (sbx-rl's)", "1e6 steps, a checkpoint every 62.5k"),
     *_learning_curve_runs("td3", "TD3 (sbx-rl's)", "1e6 steps, a checkpoint every 62.5k"),
+    *_learning_curve_runs("tqc", "TQC (sbx-rl's)", "1e6 steps, a checkpoint every 62.5k"),
     *_tuned_runs("ppo", "SB3 PPO", "1e7 steps, a checkpoint every 250k"),
     RunSpec("ppo-residual", "sb3", "SB3 PPO through the residual set-point, ppo_residual.yml's reward",
             sb3_algorithm="ppo", recipe="ppo-residual", tags=frozenset({"engineered", "residual"})),

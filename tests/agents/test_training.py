@@ -41,7 +41,7 @@ def _tiny(algo, library="sb3"):
     return hyper
 
 
-@pytest.mark.parametrize("algo, library", [("ppo", "sb3"), ("td3", "sb3"), ("sac", "sbx")])
+@pytest.mark.parametrize("algo, library", [("ppo", "sb3"), ("td3", "sb3"), ("sac", "sbx"), ("tqc", "sbx")])
 def test_an_interrupted_run_resumes_from_its_snapshot(algo, library, tmp_path, monkeypatch):
     """sbx's JAX SAC goes through the same snapshots, manifests, resume and evaluation as SB3's."""
     if library != "sb3":

@@ -17,7 +17,8 @@ from scara_gym.model.checks import UserError, UserKeyError
 
 INTEGERS = {"n_timesteps": 1, "n_envs": 1, "env_threads": 1, "torch_threads": 0, "n_steps": 1, "batch_size": 1,
             "n_epochs": 1, "buffer_size": 1, "learning_starts": 0, "gradient_steps": 1, "eval_freq": 1,
-            "eval_episodes": 1, "snapshot_freq": 1, "checkpoint_freq": 1, "policy_delay": 1, "n_sampled_goal": 1}
+            "eval_episodes": 1, "snapshot_freq": 1, "checkpoint_freq": 1, "policy_delay": 1, "n_sampled_goal": 1,
+            "top_quantiles_to_drop_per_net": 0}
 """integer hyperparameters and their least value"""
 
 
@@ -39,7 +40,7 @@ REALS = {"learning_rate": (0.0, 1.0, True), "gamma": (0.0, 1.0, True), "gae_lamb
 """real hyperparameters: (low, high, low open)"""
 
 HYPERPARAMS = Path(__file__).with_name("hyperparams")
-FILES = {"ppo": "ppo.yml", "sac": "sac.yml", "td3": "td3.yml", "ppo-residual": "ppo_residual.yml"}
+FILES = {"ppo": "ppo.yml", "sac": "sac.yml", "td3": "td3.yml", "tqc": "tqc.yml", "ppo-residual": "ppo_residual.yml"}
 """hyperparameter file of each SB3 recipe (ppo-residual: PPO acting through the residual set-point)"""
 
 
