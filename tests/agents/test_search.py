@@ -219,3 +219,29 @@ def test_the_rl_zoo_block_trains_in_rl_zoo(tmp_path):
         saved = tmp_path / "logs" / algo / f"{protocol.ENV_ID}_1"
         assert (saved / f"{protocol.ENV_ID}.zip").is_file()
         assert f"('gamma', {hyper['gamma']})" in done.stdout  # the hyperparameters RL Zoo says it trains with
+
+
+def test_the_tuned_recipes_are_the_published_searches_best_trials():
+    """A `pd-tuned` block carries the searched values of its search's best trial (the record in
+    results/search/RUN), only its budget and bookkeeping set apart."""
+    yaml = pytest.importorskip("yaml")
+    from pathlib import Path
+
+    from agents.algorithms.sb3.hyperparams import load_hyperparams
+
+    published = Path(__file__).resolve().parents[2] / "results" / "search"
+    checked = 0
+    for record_path in sorted(published.glob("*/search.json")):
+        record = json.loads(record_path.read_text())
+        if record.get("algorithm") not in search.SPACES or record["best"] is None:
+            continue
+        best = yaml.safe_load((record_path.parent / "best.yml").read_text())[record["env_id"]]
+        best = best[f"{record['control_mode']}-tuned"]
+        assert best == record["trials"][record["best"]]["hyperparams"]
+        if record["trials_run"] < record["trials_asked"]:
+            continue  # a search still going: its recipe is not adopted yet
+        tuned = load_hyperparams(record["algorithm"], record["env_id"], record["control_mode"], "tuned")
+        searched = set(search.decode(record["trials"][record["best"]]["point"])) | {"normalize"}
+        assert {k: tuned[k] for k in searched} == {k: best[k] for k in searched}, record_path
+        checked += 1
+    assert checked >= 1
