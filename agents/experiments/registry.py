@@ -38,6 +38,9 @@ TAGS = {
                  "(agents.algorithms.dagger; the expert: the real-time MPC)",
     "tuned": "its recipe is the best trial of the hyperparameter search (agents.experiments.search), whose "
              "record is published under results/search/",
+    "gsde": "explores with generalized state-dependent exploration (gSDE: noise from a state-dependent "
+            "map resampled every sde_sample_freq steps, use_sde on); searched on its own (its search keeps "
+            "use_sde on)",
     "constrained": "PPO-Lagrangian: the episode's collision cost held to cost_limit by a multiplier learned beside "
                    "the policy (agents.algorithms.torch_ppo_hooks.Lagrangian)",
 }
@@ -176,6 +179,11 @@ RUNS = _runs(
     *_learning_curve_runs("td3", "TD3 (sbx-rl's)", "1e6 steps, a checkpoint every 62.5k"),
     *_learning_curve_runs("tqc", "TQC (sbx-rl's)", "1e6 steps, a checkpoint every 62.5k"),
     *_tuned_runs("ppo", "SB3 PPO", "1e7 steps, a checkpoint every 250k"),
+    RunSpec("ppo-gsde-c11-starts", "sb3", "SB3 PPO with gSDE, ppo.yml's recipe with use_sde on, on c11-starts' "
+            "draws (starts from the start region), 1e7 steps, a checkpoint every 250k: the recipe its search "
+            "starts from", sb3_algorithm="ppo", recipe="ppo", variant="gsde-c11-starts",
+            tags=frozenset({"standard", "pilot", "gsde", "perturbed-starts", "learning-curve"}),
+            trained_on="c11-starts"),
     RunSpec("ppo-residual", "sb3", "SB3 PPO through the residual set-point, ppo_residual.yml's reward",
             sb3_algorithm="ppo", recipe="ppo-residual", tags=frozenset({"engineered", "residual"})),
     RunSpec("ppo-residual-dr", "sb3", "ppo-residual with physics and wall drawn per episode (block pd-dr)",

@@ -108,6 +108,17 @@ SPACES = {
 ("choice", values). Names of the algorithm's YAML block, but: gamma_complement (1 - gamma, so that
 long horizons are searched as finely as short ones), net_arch as "WxW", norm_reward (the block's
 normalize.norm_reward)."""
+GSDE = {"use_sde": ("choice", [True]), "sde_sample_freq": ("choice", [-1, 4, 16])}
+"""what a run tagged "gsde" searches instead: gSDE kept on, how often its noise map is resampled
+(-1: once per rollout) searched beside its initial log std"""
+
+
+def space_of(registered) -> dict:
+    """The space a registered run's search varies: its algorithm's, with GSDE for a "gsde" run."""
+    space = dict(SPACES[registered.sb3_algorithm])
+    if "gsde" in registered.tags:
+        space.update(GSDE)
+    return space
 
 
 def decode(point: dict) -> dict:
@@ -262,7 +273,7 @@ def run_search(run: str, out: Path, trials: int = 20, max_steps: int = 1_000_000
     registered = spec(run)
     if registered.trainer != "sb3" or registered.sb3_algorithm not in SPACES:
         raise UserError(f"search takes a registered SB3 run of {sorted(SPACES)}; {run} is not one")
-    space = SPACES[registered.sb3_algorithm]
+    space = space_of(registered)
     out = Path(out).resolve()
     base = dict(hyperparams_of(run, env_id, control_mode) if base is None else base)
     base.setdefault("snapshot_freq", max(1, max_steps // 4))

@@ -31,6 +31,20 @@ def test_every_space_names_what_the_issue_asks_to_search():
     assert {"noise_type", "noise_std"} <= set(search.SPACES["td3"])
 
 
+def test_a_gsde_run_searches_with_gsde_kept_on():
+    from agents.experiments.registry import spec
+
+    space = search.space_of(spec("ppo-gsde-c11-starts"))
+    assert space["use_sde"] == ("choice", [True]) and "sde_sample_freq" in space and "log_std_init" in space
+    assert search.space_of(spec("ppo-c11-starts")) == search.SPACES["ppo"]
+    hyper = search.trial_hyperparams("ppo-gsde-c11-starts", protocol.ENV_ID, "pd",
+                                     {"use_sde": True, "sde_sample_freq": 16, "log_std_init": -1.5})
+    assert hyper["use_sde"] is True and hyper["sde_sample_freq"] == 16
+    assert hyper["env_kwargs"] == {"randomize_start": True}
+    with pytest.raises(ValueError, match="sde_sample_freq"):
+        search.trial_hyperparams("ppo-gsde-c11-starts", protocol.ENV_ID, "pd", {"sde_sample_freq": -2})
+
+
 def _result(success, collisions, times):
     result = {"collisions": np.array(collisions, dtype=bool), "reach_time": np.array(times, dtype=float)}
     for band in search.BAND_NAMES:

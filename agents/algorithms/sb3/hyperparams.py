@@ -18,7 +18,7 @@ from scara_gym.model.checks import UserError, UserKeyError
 INTEGERS = {"n_timesteps": 1, "n_envs": 1, "env_threads": 1, "torch_threads": 0, "n_steps": 1, "batch_size": 1,
             "n_epochs": 1, "buffer_size": 1, "learning_starts": 0, "gradient_steps": 1, "eval_freq": 1,
             "eval_episodes": 1, "snapshot_freq": 1, "checkpoint_freq": 1, "policy_delay": 1, "n_sampled_goal": 1,
-            "top_quantiles_to_drop_per_net": 0}
+            "top_quantiles_to_drop_per_net": 0, "sde_sample_freq": -1}
 """integer hyperparameters and their least value"""
 
 
