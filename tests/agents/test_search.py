@@ -211,13 +211,20 @@ def _write_record(tmp_path, **change):
 def test_the_rl_zoo_block_trains_in_rl_zoo(tmp_path):
     """The tuned recipe in RL Zoo's format trains with RL Zoo's own command on the registered id;
     an sbx block too (RL Zoo trains SB3's implementation of the same algorithm). PPO's block is
-    written the same way (the tiny search's test reads it). Not in the test extra: after this
-    test, in the same process, the voltage-mode rollout digests of tests/test_behaviour.py came
-    out different (a leak not found yet; the experiments log, 2026-12-07 second session)."""
-    pytest.importorskip("rl_zoo3")
+    written the same way (the tiny search's test reads it). RL Zoo runs in its subprocess only:
+    importing rl_zoo3 replaces gymnasium's TimeLimit for the whole process (rl_zoo3.gym_patches:
+    an info key "TimeLimit.truncated" at the time limit), which changed the rollout digests of
+    tests/test_behaviour.py run after it in the same process."""
+    import importlib.util
     import os
     import subprocess
     import sys
+
+    import gymnasium
+
+    if importlib.util.find_spec("rl_zoo3") is None:
+        pytest.skip("rl_zoo3 is not installed (the zoo extra)")
+    own_time_limit = gymnasium.wrappers.TimeLimit
 
     for algo, run, tiny in (("sac", "sac-c11-starts", dict(learning_starts=100, buffer_size=1000)),):
         hyper = {**hyperparams_of(run, protocol.ENV_ID), **tiny, "n_timesteps": 256}
@@ -233,6 +240,7 @@ def test_the_rl_zoo_block_trains_in_rl_zoo(tmp_path):
         saved = tmp_path / "logs" / algo / f"{protocol.ENV_ID}_1"
         assert (saved / f"{protocol.ENV_ID}.zip").is_file()
         assert f"('gamma', {hyper['gamma']})" in done.stdout  # the hyperparameters RL Zoo says it trains with
+    assert gymnasium.wrappers.TimeLimit is own_time_limit and "rl_zoo3" not in sys.modules
 
 
 def test_the_tuned_recipes_are_the_published_searches_best_trials():
