@@ -10,12 +10,14 @@ import numpy as np
 
 from agents.experiments.entries import is_zero_shot, row_of
 from agents.experiments.evaluation import COLUMNS, DECISION_EPISODES
+from agents.experiments.registry import RUNS, trained_for
+from agents.experiments.runs import hyperparams_of
 from agents.experiments.statistics import episodes_of, interval_estimates, rate_claim, rate_text
 from agents.experiments.targets import target_checks
 from agents.files import write_atomic
 from scara_gym import DEFAULT_PARAMS
 from scara_gym.benchmark.episodes import BAND_NAMES
-from scara_gym.benchmark.protocol import CONDITIONS
+from scara_gym.benchmark.protocol import CONDITIONS, ENV_ID
 from scara_gym.extras import require
 
 
@@ -127,7 +129,55 @@ def comparison_markdown(entries: list[dict]) -> str:
     rows = [{"target": c["target"], "met": met[c["met"]], "reached": c["reached"]} for c in target_checks(entries)]
     lines = ["#### Targets", "", markdown_table(("target", "met", "reached"), rows), ""]
     return ("\n".join(lines) + "\n" + verdicts(entries) + "\n" + overview(entries) + "\n"
-            + condition_tables(entries))
+            + learned_rows(entries) + "\n" + condition_tables(entries))
+
+
+def tuning_of(tags) -> str:
+    """How a learned run's settings were chosen, from its registry tags."""
+    if "tuned" in tags:
+        return "searched: the best of its algorithm's hyperparameter search (record under results/search/)"
+    if "distilled" in tags:
+        return "distilled from the real-time MPC (DAgger); the network's settings hand-set"
+    if "offline" in tags:
+        return "behaviour cloning of a dataset; hand-set"
+    if "engineered" in tags or "constrained" in tags or "interface-ablation" in tags:
+        return "hand-set in pilots (docs/experiments.md), not searched"
+    return "untuned: its implementation's defaults (RL Zoo's for SB3's algorithms)"
+
+
+def budget_of(run: str, env_id: str, control_mode: str) -> str:
+    """A registered run's training budget in environment steps (its block's or Config's), as text."""
+    if run not in RUNS:
+        return "-"
+    hyper = hyperparams_of(run, env_id, control_mode)
+    steps = hyper.get("n_timesteps", hyper.get("total_timesteps"))
+    if steps is None:
+        return "-"
+    base = RUNS[run].base
+    return f"{int(steps):,} steps" + (f" after {base}'s" if base else "")
+
+
+def learned_rows(entries: list[dict]) -> str:
+    """What each learned row had: its seeds, the draws it trained on, its budget and recipe (the
+    registry's description) and how its settings were chosen (issue 58 item 9: every claim names
+    the budget and tuning of the rows it rests on)."""
+    seen = {}
+    for e in entries:
+        if e["kind"] in ("learned", "offline") and e.get("run") and e["run"] not in seen:
+            seen[e["run"]] = e
+    rows = []
+    for run, e in seen.items():
+        tags = frozenset(e.get("tags") or ())
+        draws = sorted(trained_for(tags))
+        rows.append({"run": run, "seeds": ",".join(str(s) for s in e.get("seeds") or ()) or "-",
+                     "trained on": ", ".join(f"{d} draws" for d in draws) or "the C11 episode's start",
+                     "budget": budget_of(run, e.get("env_id", ENV_ID), e["control_mode"]),
+                     "recipe": RUNS[run].description if run in RUNS else "-", "tuning": tuning_of(tags)})
+    if not rows:
+        return ""
+    return ("#### Learned rows: what each had (seeds, training draws, budget in environment steps, recipe, how "
+            "its settings were chosen)\n\n"
+            + markdown_table(("run", "seeds", "trained on", "budget", "recipe", "tuning"), rows) + "\n")
 
 
 CLASSICAL_KINDS = ("pd", "heuristic", "mpc", "mpc-rti")

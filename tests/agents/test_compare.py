@@ -401,6 +401,18 @@ def test_the_curves_classical_points_come_back_from_the_cache(tmp_path, monkeypa
     assert curves.curve_points(shielded, {}, 1, cache=tmp_path, verbose=False) == first
 
 
+def test_the_report_says_what_budget_and_tuning_each_learned_row_had():
+    entries = [{**_entry(c, "learned", "ppo-tuned-c11-starts", seeds=[0, 1]), "env_id": LATEST_ENV_ID}
+               for c in ("c11-starts", "delay-1")]
+    entries += [{**_entry("c11-starts", "learned", "sac", seeds=[0, 1, 2]), "env_id": LATEST_ENV_ID},
+                {**_entry("c11-starts", "pd"), "env_id": LATEST_ENV_ID}]
+    rows = report.learned_rows(entries).splitlines()[4:]
+    assert len(rows) == 2  # one per run, not per condition; classical rows have none
+    assert rows[0].startswith("| ppo-tuned-c11-starts | 0,1 | c11-starts draws | 10,000,000 steps |")
+    assert rows[0].endswith("| searched: the best of its algorithm's hyperparameter search (record under results/search/) |")
+    assert rows[1].startswith("| sac | 0,1,2 | the C11 episode's start | 60,000 steps |") and "untuned" in rows[1]
+
+
 def test_a_zero_shot_cell_is_marked_in_the_tables_and_shows_no_numbers_in_the_headline():
     """A learned run scored in a training distribution whose draws it never trained on measures
     transfer: "zero-shot" beside its numbers in the full tables, alone in the headline."""
@@ -570,6 +582,7 @@ def test_report_only_writes_the_targets_and_the_page_of_a_published_comparison_a
     assert written["targets"] == target_checks(entries) and written["reported_by"].startswith("scara-agents compare")
     page = (tmp_path / "out" / "comparison.md").read_text()
     assert "an old one" not in page and "| ppo | learned, zero-shot |" in page
+    assert "| ppo | 0 | the C11 episode's start | 2,000,000 steps | SB3 PPO, ppo.yml | untuned" in page
     for argv, says in ((["--only", "mpc"], "--report-only evaluates nothing"), ([], "is not a comparison.json")):
         if not argv:
             path.write_text(json.dumps({"policies": "none"}))
