@@ -280,11 +280,11 @@ class _ConditionTable:
                 self.mpc(self.mpc_latency_rows)
             elif kind == "robust-shield":
                 self.robust_shield()
-            elif kind == "learned-shielded":  # the heuristic's episodes first: P(faster than heuristic)
+            elif kind in ("learned-shielded", "learned"):  # the heuristic's episodes first: P(faster than heuristic)
                 scratch = _ConditionTable(self.condition, self.episodes, False, self.cache)
                 scratch.classical(heuristics, shielded, include_optimal=False, robust_shield=False)
                 self.reference = scratch.reference
-                self.learned(groups, self.cache, shielded, shields=(True,))
+                self.learned(groups, self.cache, shielded, shields=(kind == "learned-shielded",))
             else:
                 raise UserError(f"--only: unknown kind of row {kind!r}; the kinds are {sorted(ONLY_ROWS)}")
 
@@ -378,20 +378,26 @@ def time_score_reference(records) -> tuple[str, str] | None:
 
 
 ONLY_ROWS = {
+    "learned": lambda e: e["kind"] in ("learned", "offline") and not shield_added(e),
     "mpc": lambda e: e["kind"] in ("mpc", "mpc-rti"),
     "robust-shield": lambda e: e["kind"] == "pd" and e.get("shield_range") == ROBUST_RANGES,
     "learned-shielded": shield_added,
 }
 """the kinds of row ``compare --only`` evaluates alone (after a change to that policy alone, so as
-not to re-evaluate every learned run): which entries (records) they are"""
+not to re-evaluate every learned run): which entries (records) they are. "learned": the learned
+and offline rows (without an added shield) of the runs under ``--runs``; merged, they replace
+those runs' rows only (merge_entries), so a folder holding just new runs adds their rows. Rows
+evaluated alone get no normalized time score (its reference rows are not evaluated with them)."""
 
 
 def merge_entries(published: list[dict], fresh: list[dict], kinds) -> list[dict]:
     """``published`` entries with the rows of ``kinds`` (ONLY_ROWS) of every condition ``fresh``
     covers replaced by ``fresh``'s: a row kept where it was, a new one after its unshielded twin,
     else after the last row of its kind in its condition, else at the condition's end. The other
-    entries are kept as published."""
-    chosen = [ONLY_ROWS[k] for k in kinds]
+    entries are kept as published. For "learned", only the rows of the runs ``fresh`` has."""
+    fresh_runs = {(e["condition"], e.get("run")) for e in fresh if ONLY_ROWS["learned"](e)}
+    chosen = [(lambda e: ONLY_ROWS["learned"](e) and (e["condition"], e.get("run")) in fresh_runs)
+              if k == "learned" else ONLY_ROWS[k] for k in kinds]
 
     def picked(e: dict) -> bool:
         return any(c(e) for c in chosen)

@@ -609,6 +609,13 @@ def test_merged_rows_go_beside_their_twin_or_their_kind_and_the_rest_is_kept():
     merged = comparison.merge_entries(merged, fresh, ["mpc"])
     assert [e["time_iqm"] for e in merged if e["kind"] == "mpc"] == [0.0, 3.0]
     assert [e["name"] for e in merged if e["condition"] == "b"] == ["pd", "mpc", "ppo", "ppo + shield"]
+    # learned rows of new runs: added after the condition's last learned row; the other runs' rows kept
+    fresh = [row("a", "tqc", "learned", 4.0), row("b", "tqc", "learned", 5.0), row("b", "ppo", "learned", 6.0)]
+    merged = comparison.merge_entries(merged, fresh, ["learned"])
+    assert [(e["name"], e["time_iqm"]) for e in merged if e["condition"] == "a"] == [
+        ("pd", 0.0), ("mpc", 0.0), ("ppo", 0.0), ("ppo + shield", 1.0), ("sac", 0.0), ("tqc", 4.0)]
+    assert [(e["name"], e["time_iqm"]) for e in merged if e["condition"] == "b"] == [
+        ("pd", 0.0), ("mpc", 3.0), ("ppo", 6.0), ("ppo + shield", 2.0), ("tqc", 5.0)]
 
 
 @pytest.mark.parametrize("condition, own", [("c11-starts", 0), ("delay-1", 1)])
