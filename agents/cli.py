@@ -366,6 +366,9 @@ def _add_compare(sub) -> None:
     p.add_argument("--cache", type=_folder, default=None, metavar="DIR",
                    help="keep learned runs' evaluations in DIR and reuse them (e.g. runs/compare-cache)")
     p.add_argument("--pilots", action="store_true", help="also the runs tagged 'pilot' (left out by default)")
+    p.add_argument("--run-names", nargs="+", default=None, metavar="NAME",
+                   help="only these registered runs of --runs (default: every one); e.g. with --only learned "
+                        "--merge, to add a new run's rows to a published comparison")
     p.add_argument("--no-robust-shield", action="store_true",
                    help="leave out PD behind the robust shield in the shifted conditions (about 4 s per episode)")
     p.add_argument("--no-mpc", action="store_true", help="leave out the nonlinear MPC (about 10 s per episode) and the real-time MPC")
@@ -407,9 +410,10 @@ def _compare(args, argv) -> list[dict]:
     if args.episodes is not None:
         _positive("--episodes", args.episodes)
     _positive("--jobs", args.jobs)
-    unknown = [name for name in args.shield if name not in RUNS]
-    if unknown:
-        raise UserError(f"--shield names {unknown}, which are not registered runs; they are {sorted(RUNS)}")
+    for flag, names in (("--shield", args.shield), ("--run-names", args.run_names or ())):
+        unknown = [name for name in names if name not in RUNS]
+        if unknown:
+            raise UserError(f"{flag} names {unknown}, which are not registered runs; they are {sorted(RUNS)}")
     if not args.runs.is_dir():
         raise UserError(f"--runs: no folder {str(args.runs)!r} (the learned runs, ENV_ID/MODE/NAME/seedN; the "
                         "published ones are the repository's results/runs)")
@@ -428,7 +432,8 @@ def _compare(args, argv) -> list[dict]:
                                           shielded=tuple(args.shield), pilots=args.pilots,
                                           robust_shield=not args.no_robust_shield, include_mpc=not args.no_mpc,
                                           only=tuple(args.only or ()), decision_times=not args.no_decision_times,
-                                          mpc_latency=not args.no_mpc_latency)
+                                          mpc_latency=not args.no_mpc_latency,
+                                          run_names=None if args.run_names is None else tuple(args.run_names))
     command = "scara-agents " + " ".join(argv)
     if merged:
         entries = merge_entries(merged["policies"], entries, args.only)

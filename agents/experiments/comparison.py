@@ -122,7 +122,7 @@ def compare(runs_root: Path | None = Path("runs/baselines"), conditions: list[st
             episodes: int | None = None, include_optimal: bool = True, verbose: bool = True,
             cache: Path | None = None, shielded: tuple[str, ...] = SHIELDED, heuristics: dict | None = None,
             pilots: bool = False, robust_shield: bool = True, include_mpc: bool = True, only: tuple[str, ...] = (),
-            decision_times: bool = True, mpc_latency: bool = True):
+            decision_times: bool = True, mpc_latency: bool = True, run_names: tuple[str, ...] | None = None):
     """Every policy in every condition: (entries, traces per condition). episodes: per condition
     (None: the condition's own count; a dict: condition -> count, None or missing for its own;
     the C11 episode is one). only: kinds of ONLY_ROWS, evaluated alone (every other row left
@@ -138,7 +138,8 @@ def compare(runs_root: Path | None = Path("runs/baselines"), conditions: list[st
     every entry's compute per control step ("decision_time": median and 95th percentile [s],
     evaluation.decision_time, timed afresh on this machine over the condition's first episodes;
     the MPC's is its solve time per control step). mpc_latency: with the MPC, each of its modes
-    again under its own latency (``added_delay``: _ConditionTable.mpc_latency). Every entry names the id it was scored on
+    again under its own latency (``added_delay``: _ConditionTable.mpc_latency). run_names: only
+    these registered runs of ``runs_root`` (None: every one). Every entry names the id it was scored on
     ("env_id": the protocol's) and says
     whether a shield acts ("shielded") and for
     which parameters it is built ("shield_range": "nominal" or the robust ranges); a learned one
@@ -148,6 +149,8 @@ def compare(runs_root: Path | None = Path("runs/baselines"), conditions: list[st
     groups = learned_runs(runs_root) if runs_root is not None else {}
     if not pilots:
         groups = {key: dirs for key, dirs in groups.items() if "pilot" not in getattr(RUNS.get(key[0]), "tags", ())}
+    if run_names is not None:
+        groups = {key: dirs for key, dirs in groups.items() if key[0] in run_names}
     for name in conditions:
         started = time.perf_counter()
         count = episodes.get(name) if isinstance(episodes, dict) else episodes

@@ -138,6 +138,7 @@ MISTAKES = [
     # compare
     (["compare", "--runs", "/nonexistent"], "--runs: no folder"),
     (["compare", "--shield", "nosuch"], r"--shield names \['nosuch'\], which are not registered runs"),
+    (["compare", "--run-names", "nosuch"], r"--run-names names \['nosuch'\], which are not registered runs"),
     (["compare", "--episodes", "0"], "--episodes must be >= 1"),
     (["compare", "--jobs", "0"], "--jobs must be >= 1"),
     (["compare", "--conditions", "c12"], "--conditions: invalid choice"),

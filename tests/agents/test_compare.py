@@ -565,6 +565,17 @@ def test_only_and_merge_put_one_kind_of_row_into_a_published_comparison(tmp_path
         curves_module.merge_curves(json.loads(path.read_text()), ["robust-shield"], verbose=False)
 
 
+def test_run_names_pick_the_runs_whose_rows_are_evaluated(tmp_path, monkeypatch):
+    seen = []
+    monkeypatch.setattr(comparison, "learned_runs", lambda root: {("ppo", "pd"): [tmp_path], ("sac", "pd"): [tmp_path]})
+    monkeypatch.setattr(comparison._ConditionTable, "learned",
+                        lambda self, groups, cache, shielded, shields=(False, True): seen.append(sorted(groups)))
+    kwargs = dict(episodes=1, verbose=False, heuristics=HEURISTICS, only=("learned",), decision_times=False)
+    comparison.compare(tmp_path, ["c11"], run_names=("sac",), **kwargs)
+    comparison.compare(tmp_path, ["c11"], **kwargs)
+    assert seen == [[("sac", "pd")], [("ppo", "pd"), ("sac", "pd")]]
+
+
 def test_report_only_writes_the_targets_and_the_page_of_a_published_comparison_anew(tmp_path, capsys):
     """``compare --report-only FILE``: no episode; the entries as published, the targets and
     comparison.md written again from them (after a change to the report or the targets)."""
