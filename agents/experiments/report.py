@@ -207,6 +207,15 @@ def verdicts(entries: list[dict]) -> str:
              "counts only where it is not zero-shot (in c11-starts, random-targets and random-shifts: trained on "
              "that condition's draws)", "",
              "| condition | best classical | best learned | verdict | best behind a shield |", "|---|---|---|---|---|"]
+    for name, c, ell, side, by, shielded in _verdict_rows(entries):
+        best_shielded = _verdict_cell(shielded) if shielded else "-"
+        lines.append(f"| {name} | {_verdict_cell(c)} | {_verdict_cell(ell)} | {side} wins: {by} | {best_shielded} |")
+    return "\n".join(lines) + "\n"
+
+
+def _verdict_rows(entries: list[dict]):
+    """Per condition with both: (condition, best classical, best learned (not zero-shot), the
+    winning side, by how much, the best shielded entry or None), each ranked by _rank."""
     for name in dict.fromkeys(e["condition"] for e in entries):
         here = [e for e in entries if e["condition"] == name]
         classical = sorted((e for e in here if e["kind"] in CLASSICAL_KINDS and not e.get("shielded")), key=_rank)
@@ -217,14 +226,31 @@ def verdicts(entries: list[dict]) -> str:
             continue
         c, ell = classical[0], learned[0]
         winner, other = (c, ell) if _rank(c) <= _rank(ell) else (ell, c)
-        side = "classical" if winner is c else "learned"
         if _rank(winner)[:3] == _rank(other)[:3]:
             by = f"{other['time_iqm'] - winner['time_iqm']:.3f} s faster"
         else:
             by = (f"collisions {rate_text(winner['collision_rate'])} vs {rate_text(other['collision_rate'])}, "
                   f"success {rate_text(winner['success_rate'])} vs {rate_text(other['success_rate'])}")
-        best_shielded = _verdict_cell(shielded[0]) if shielded else "-"
-        lines.append(f"| {name} | {_verdict_cell(c)} | {_verdict_cell(ell)} | {side} wins: {by} | {best_shielded} |")
+        yield name, c, ell, "classical" if winner is c else "learned", by, (shielded[0] if shielded else None)
+
+
+def _short_cell(e: dict) -> str:
+    count = len(e.get("seeds") or ())
+    seeds = f", {count} seed{'s' if count > 1 else ''}" if count else ""
+    rates = "" if _rank(e)[0] is False else f", {rate_text(e['success_rate'])} / {rate_text(e['collision_rate'])}"
+    return f"{e['name']} ({e['time_iqm']:.3f} s{rates}{seeds})"
+
+
+def verdict_summary(entries: list[dict], conditions: tuple[str, ...] | None = None) -> str:
+    """The verdicts in brief (the README's, over its headline conditions): per condition, the best
+    classical controller and the best learned policy without a shield (not zero-shot), and which
+    wins by how much; the full verdicts, with intervals, and each learned row's budget and tuning
+    are in comparison.md."""
+    lines = ["| condition | best classical (IQM time) | best learned, no shield | verdict |", "|---|---|---|---|"]
+    for name, c, ell, side, by, _ in _verdict_rows(entries):
+        if conditions is not None and name not in conditions:
+            continue
+        lines.append(f"| {name} | {_short_cell(c)} | {_short_cell(ell)} | {side}: {by} |")
     return "\n".join(lines) + "\n"
 
 

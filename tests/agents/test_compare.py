@@ -364,6 +364,12 @@ def test_verdicts_name_the_best_classical_and_learned_policy_and_the_winner():
     assert rows[1].startswith("| delay-1 | dec-continue, tuned:") and "learned wins: collisions 0.50 vs 0.80" in rows[1]
     assert rows[1].endswith("| pd + shield: 1.00 / 0.00, 1.500 s, 70 J; collisions 0 of 30 (at most 11.6 %) |")
     assert "| ppo: 0.50 / 0.50, 1.500 s, 70 J; collisions 15 of 30 (50.0 %, 95 % CI 31.3-68.7 %)" in rows[1]
+    brief = report.verdict_summary(entries).splitlines()[2:]  # the README's: the same winners, in brief
+    assert brief == ["| c11-starts | dec-continue, tuned (1.600 s) | ppo-c11-starts (1.400 s, 1 seed) | "
+                     "learned: 0.200 s faster |",
+                     "| delay-1 | dec-continue, tuned (1.500 s, 0.20 / 0.80) | ppo (1.500 s, 0.50 / 0.50, 1 seed) | "
+                     "learned: collisions 0.50 vs 0.80, success 0.50 vs 0.20 |"]
+    assert report.verdict_summary(entries, ("delay-1",)).splitlines()[2:] == brief[1:]
 
 
 def test_robustness_curves_run_every_policy_at_every_point(tmp_path, monkeypatch):
