@@ -42,7 +42,7 @@ from agents.experiments.comparison import ONLY_ROWS, SHIELDED, compare_in_parall
 from agents.experiments.curves import ONLY_CURVES, merge_curves, robustness_curves, write_curves
 from agents.experiments.evaluation import COLUMNS, evaluate, learned_runs
 from agents.experiments.learning_curves import learning_curve, run_folders
-from agents.experiments.mpc_search import tune_mpc
+from agents.experiments.mpc_search import heuristic_controller, tune_controller, tune_mpc
 from agents.experiments.registry import RUNS, spec
 from agents.experiments.report import comparison_figures, comparison_markdown, evaluation_report, markdown_table
 from agents.experiments.runs import campaign, hyperparams_of, train_run
@@ -591,6 +591,31 @@ def _add_tune_mpc(sub) -> None:
     p.set_defaults(handler=_tune_mpc)
 
 
+def _add_tune_heuristic(sub) -> None:
+    p = sub.add_parser("tune-heuristic", help="the dec heuristic's trigger distance tuned under the learned "
+                                              "baselines' written rule",
+                       description="Trials of the dec heuristic's trigger distance that Optuna proposes (the first: "
+                                   "the distance the comparison uses), each scored once on the tuning episodes of "
+                                   "c11-starts by the search's objective (agents.experiments.mpc_search): "
+                                   "trials.jsonl, search.json, search.md and best.json under --out; run again into the "
+                                   "same --out to go on.")
+    p.add_argument("--variant", choices=("continue", "restart"), default="continue")
+    p.add_argument("--trials", type=int, default=20)
+    p.add_argument("--episodes", type=int, default=20, help="tuning episodes a trial")
+    p.add_argument("--seed", type=int, default=0, help="the sampler's seed")
+    p.add_argument("--out", type=_folder, default=None, help="default: runs/search/dec-VARIANT")
+    p.set_defaults(handler=_tune_heuristic)
+
+
+def _tune_heuristic(args, argv) -> dict:
+    for flag in ("--trials", "--episodes"):
+        _positive(flag, getattr(args, flag[2:]))
+    out = args.out or Path("runs/search") / f"dec-{args.variant}"
+    record = tune_controller(heuristic_controller(args.variant), out, args.trials, args.episodes, "pd", args.seed)
+    print(f"dec-{args.variant}: {record['trials_run']} trials, best {record['best']}; written to {out}")
+    return record
+
+
 def _tune_mpc(args, argv) -> dict:
     for flag in ("--trials", "--episodes"):
         _positive(flag, getattr(args, flag[2:]))
@@ -787,7 +812,7 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--debug", action="store_true", help="show the traceback of an error")
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
     for add in (_add_evaluate, _add_train, _add_torch_ppo, _add_campaign, _add_compare, _add_curves,
-                _add_learning_curve, _add_search, _add_tune_mpc, _add_sweep,
+                _add_learning_curve, _add_search, _add_tune_mpc, _add_tune_heuristic, _add_sweep,
                 _add_select, _add_optimal, _add_bench, _add_datasets):
         add(sub)
     return parser

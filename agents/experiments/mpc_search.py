@@ -1,6 +1,7 @@
-"""The real-time MPC tuned under the learned baselines' written rule (issue 58 item 3).
+"""The real-time MPC and the dec heuristic tuned under the learned baselines' written rule (issue 58 item 3).
 
     scara-agents tune-mpc --trials 20 --episodes 20 --out runs/search/mpc-rti
+    scara-agents tune-heuristic --variant continue --trials 20 --episodes 20 --out runs/search/dec-continue
 
 The learned algorithms are tuned by `agents.experiments.search`: at least 20 trials proposed by
 Optuna's TPE sampler, each scored by `search.objective` (the clean success rate at each band,
@@ -10,7 +11,9 @@ objective. The MPC gets the same: the same sampler, trial count, tuning episodes
 rule, over what shapes its plan (`SPACE`: the horizon, the wall margin and approach rate, the
 height margin, the cost weights). It has no training steps, so a trial is scored once and
 nothing is stopped early. The first trial is the published configuration (`MPCConfig()`'s
-defaults), so that the record says where it stands among the others.
+defaults), so that the record says where it stands among the others. The seed paper's ``dec``
+heuristic gets the same over its one parameter, the trigger distance (`heuristic_controller`),
+its first trial the distance the comparison uses (agents.experiments.tuning's bisection rule).
 
 Each finished trial is appended to ``OUT/trials.jsonl`` at once (a crash loses at most the trial
 under way), and a search run again into the same ``OUT`` goes on from those trials (they are
@@ -22,13 +25,17 @@ from __future__ import annotations
 
 import json
 import time
+from collections.abc import Callable
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 from agents.experiments.report import markdown_table
 from agents.experiments.search import objective, rung_figures
+from agents.experiments.tuning import tune_heuristic
 from agents.files import write_atomic, write_json
+from agents.policies.heuristic import DecHeuristic
 from agents.policies.mpc import MPCConfig, default_weights
 from agents.policies.mpc_rti import RTIConfig, RTIMPCPolicy
 from scara_gym.benchmark.protocol import ENV_ID, evaluate, tuning
@@ -68,12 +75,18 @@ def mpc_config(point: dict) -> MPCConfig:
 def score_point(point: dict, episodes: int, mode: str = "voltage") -> dict:
     """One trial: the real-time MPC at ``point`` on ``episodes`` tuning episodes of CONDITION;
     {"objective", "collision_rate", "success_BAND"..., "step_time_median", "step_time_p95"}."""
-    condition = tuning(CONDITION, episodes)
     config = RTIConfig(mpc=mpc_config(point))
+    return score_policy(lambda env: RTIMPCPolicy(env, config), episodes, mode)
+
+
+def score_policy(factory, episodes: int, mode: str) -> dict:
+    """A policy (``factory(env)``) on ``episodes`` tuning episodes of CONDITION, scored by the
+    search's objective, with its time per step."""
+    condition = tuning(CONDITION, episodes)
     step_times: list[float] = []
 
     def timed_policy(env):
-        policy = RTIMPCPolicy(env, config)
+        policy = factory(env)
 
         def act(obs):
             started = time.perf_counter()
@@ -104,15 +117,58 @@ def _read_trials(path: Path) -> list[dict]:
     return trials
 
 
+@dataclass(frozen=True)
+class Controller:
+    """What a controller's search varies and how a point is scored and written."""
+
+    name: str
+    space: dict
+    default_point: dict
+    """the published configuration: the first trial"""
+    score: Callable[[dict, int, str], dict]
+    best: Callable[[dict], dict]
+    """the chosen point as OUT/best.json's content"""
+
+
+def mpc_controller(score=score_point, space: dict | None = None) -> Controller:
+    space = SPACE if space is None else space
+    return Controller("mpc-rti", space, {k: v for k, v in DEFAULT_POINT.items() if k in space}, score,
+                      lambda point: {"mpc": {k: (list(v) if isinstance(v, tuple) else v)
+                                             for k, v in vars(mpc_config(point)).items() if k in MPC_FIELDS}})
+
+
+HEURISTIC_SPACE = {"distance": ("uniform", 0.02, 0.2)}
+"""the heuristic's search: its trigger distance [m] (the bisection's published ones are 0.06-0.08 m)"""
+
+
+def heuristic_controller(variant: str, score=None, published: float | None = None) -> Controller:
+    """The dec heuristic's search (variant "continue" or "restart"), "pd" mode; its first trial
+    the published distance (``published``, else agents.experiments.tuning's rule computes it)."""
+    def score_distance(point: dict, episodes: int, mode: str) -> dict:
+        return score_policy(lambda env: DecHeuristic(env, variant, critical_distance=point["distance"]), episodes,
+                            mode)
+
+    distance = tune_heuristic(variant)["distance"] if published is None else published
+    return Controller(f"dec-{variant}", HEURISTIC_SPACE, {"distance": float(distance)},
+                      score_distance if score is None else score,
+                      lambda point: {f"dec-{variant}": {"distance": point["distance"]}})
+
+
 def tune_mpc(out: Path, trials: int = 20, episodes: int = 20, mode: str = "voltage", seed: int = 0,
              space: dict | None = None, score=score_point) -> dict:
-    """The search of the module docstring; returns the record written to OUT/search.json."""
+    """The real-time MPC's search (module docstring); returns the record written to OUT/search.json."""
+    return tune_controller(mpc_controller(score, space), out, trials, episodes, mode, seed)
+
+
+def tune_controller(controller: Controller, out: Path, trials: int = 20, episodes: int = 20, mode: str = "voltage",
+                    seed: int = 0) -> dict:
+    """The search of the module docstring for ``controller``; returns the record written to OUT/search.json."""
     require("optuna")
     import optuna
 
     if trials < 1 or episodes < 1:
         raise UserError(f"trials and episodes must be at least 1, got {trials} and {episodes}")
-    space = SPACE if space is None else space
+    space, score = controller.space, controller.score
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     log = out / "trials.jsonl"
@@ -120,6 +176,8 @@ def tune_mpc(out: Path, trials: int = 20, episodes: int = 20, mode: str = "volta
     if log.exists():  # a line torn by a crash is dropped before new trials are appended after it
         write_atomic(log, "".join(json.dumps(t) + "\n" for t in done))
     setup = {"episodes": episodes, "mode": mode, "seed": seed, "env_id": ENV_ID, "space": sorted(space)}
+    if controller.name != "mpc-rti":  # the MPC's records were written before the setup named the policy
+        setup["policy"] = controller.name
     if done and done[0].get("setup") != setup:
         raise UserError(f"{out} holds a search of another setup ({done[0].get('setup')}); give another --out")
     optuna.logging.set_verbosity(optuna.logging.WARNING)
@@ -131,7 +189,7 @@ def tune_mpc(out: Path, trials: int = 20, episodes: int = 20, mode: str = "volta
         study.add_trial(optuna.trial.create_trial(params=t["point"], distributions=distributions,
                                                   value=t["figures"]["objective"]))
     if not done:
-        study.enqueue_trial({k: v for k, v in DEFAULT_POINT.items() if k in space})
+        study.enqueue_trial(dict(controller.default_point))
     while len(done) < trials:
         trial = study.ask(distributions)
         point = dict(trial.params)
@@ -147,7 +205,7 @@ def tune_mpc(out: Path, trials: int = 20, episodes: int = 20, mode: str = "volta
         print(f"trial {entry['trial']}: objective {figures['objective']:.4f}, success 1e-3 "
               f"{figures['success_1e-3']:.2f}, collisions {figures['collision_rate']:.2f} ({entry['seconds']:.0f} s)")
     best = max(range(len(done)), key=lambda i: done[i]["figures"]["objective"])
-    record = {"policy": "mpc-rti", "env_id": ENV_ID, "control_mode": mode,
+    record = {"policy": controller.name, "env_id": ENV_ID, "control_mode": mode,
               "condition": f"{CONDITION} (tuning seeds), {episodes} episodes a trial",
               "space": {k: list(v) for k, v in space.items()}, "objective": objective.__doc__.split("\n\n")[0],
               "rule": "the highest objective (the learned baselines' search's rule; one score per trial, no rungs)",
@@ -155,9 +213,7 @@ def tune_mpc(out: Path, trials: int = 20, episodes: int = 20, mode: str = "volta
               "trials_asked": trials, "trials_run": len(done), "best": best, "trials": done}
     write_json(out / "search.json", record)
     write_atomic(out / "search.md", mpc_search_markdown(record))
-    chosen = mpc_config(done[best]["point"])
-    write_json(out / "best.json", {"mpc": {k: (list(v) if isinstance(v, tuple) else v)
-                                           for k, v in vars(chosen).items() if k in MPC_FIELDS}})
+    write_json(out / "best.json", controller.best(done[best]["point"]))
     return record
 
 

@@ -9,7 +9,7 @@ import pytest
 from agents.cli import build_parser, run
 from scara_gym import LATEST_ENV_ID
 
-SUBCOMMANDS = ("evaluate", "train", "torch-ppo", "campaign", "compare", "curves", "learning-curve", "search", "tune-mpc", "sweep",
+SUBCOMMANDS = ("evaluate", "train", "torch-ppo", "campaign", "compare", "curves", "learning-curve", "search", "tune-mpc", "tune-heuristic", "sweep",
                "select", "optimal", "bench", "datasets")
 
 

@@ -171,6 +171,8 @@ MISTAKES = [
     (["tune-mpc", "--trials", "0"], "--trials must be"),
     (["tune-mpc", "--episodes", "-3"], "--episodes must be"),
     (["tune-mpc", "--control-mode", "torque"], "--control-mode: invalid choice"),
+    (["tune-heuristic", "--trials", "0"], "--trials must be"),
+    (["tune-heuristic", "--variant", "pause"], "--variant: invalid choice"),
     (["search", "torch-ppo"], "torch-ppo is not a registered SB3 run"),
     (["search", "ppo", "--trials", "0"], "--trials must be"),
     (["search", "ppo", "--grace-steps", "10", "--max-steps", "5"], "--grace-steps must be at most --max-steps"),

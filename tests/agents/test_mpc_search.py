@@ -56,3 +56,28 @@ def test_one_trial_scores_the_real_time_mpc_on_tuning_episodes():
     figures = mpc_search.score_point(mpc_search.DEFAULT_POINT, episodes=1)
     assert figures["success_1e-3"] == 1.0 and figures["collision_rate"] == 0.0
     assert 0.9 < figures["objective"] < 1.0 and 0 < figures["step_time_median"] <= figures["step_time_p95"]
+
+
+def test_the_heuristics_distance_is_searched_the_same_way_from_its_published_distance(tmp_path):
+    seen = []
+
+    def score(point, episodes, mode):  # a score that prefers distances near 0.09 m
+        seen.append((point["distance"], episodes, mode))
+        return {"objective": 1.0 - abs(point["distance"] - 0.09), "collision_rate": 0.0, "success_1e-3": 1.0,
+                "success_1e-2": 1.0, "success_5e-2": 1.0, "step_time_median": 1e-5, "step_time_p95": 2e-5}
+
+    controller = mpc_search.heuristic_controller("continue", score=score, published=0.0664)
+    record = mpc_search.tune_controller(controller, tmp_path, trials=5, episodes=2, mode="pd")
+    assert seen[0] == (0.0664, 2, "pd") and len(seen) == 5 and record["policy"] == "dec-continue"
+    assert all(0.02 <= d <= 0.2 for d, _, _ in seen)
+    best = json.loads((tmp_path / "best.json").read_text())
+    assert best == {"dec-continue": {"distance": record["trials"][record["best"]]["point"]["distance"]}}
+    with pytest.raises(UserError, match="another setup"):  # an MPC search is not resumed from it
+        mpc_search.tune_mpc(tmp_path, trials=6, episodes=2, mode="pd", score=fake_score({"n": 0}))
+
+
+def test_one_trial_scores_the_heuristic_on_tuning_episodes():
+    controller = mpc_search.heuristic_controller("continue", published=0.08)
+    figures = controller.score({"distance": 0.08}, 2, "pd")
+    assert 0.0 <= figures["success_1e-3"] <= 1.0 and -0.031 <= figures["objective"] <= 1.0
+    assert 0 < figures["step_time_median"] <= figures["step_time_p95"]
