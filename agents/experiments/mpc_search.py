@@ -36,8 +36,9 @@ from agents.experiments.search import objective, rung_figures
 from agents.experiments.tuning import tune_heuristic
 from agents.files import write_atomic, write_json
 from agents.policies.heuristic import DecHeuristic
-from agents.policies.mpc import MPCConfig, default_weights
+from agents.policies.mpc import MPCConfig
 from agents.policies.mpc_rti import RTIConfig, RTIMPCPolicy
+from scara_gym import DEFAULT_PARAMS, ScaraParams
 from scara_gym.benchmark.protocol import ENV_ID, evaluate, tuning
 from scara_gym.extras import require
 from scara_gym.model.checks import UserError
@@ -63,6 +64,15 @@ DEFAULT_POINT = {"horizon": MPCConfig.horizon, "wall_margin": MPCConfig.wall_mar
                  "weight_scale_1": 1.0, "weight_scale_2": 1.0, "weight_scale_3": 1.0,
                  "voltage_weight": MPCConfig.voltage_weight}
 """the published configuration as a point of SPACE: the search's first trial"""
+
+
+def default_weights(params: ScaraParams | None = None) -> np.ndarray:
+    """MPCConfig.weights' default as MPCPolicy computes it: 1 / v_max_i^2, v_max_i = Umax_i / (kT_i u_i)
+    the speed the back-EMF allows at Umax (each joint's error in seconds at the axis' top speed).
+    Kept here, not in agents.policies.mpc: that module's source keys the MPC's cached evaluations."""
+    params = DEFAULT_PARAMS if params is None else params
+    top_speed = params.voltage_limits / np.array([a.torque_constant * a.gear_ratio for a in params.axes])
+    return 1.0 / top_speed**2
 
 
 def mpc_config(point: dict) -> MPCConfig:

@@ -111,8 +111,7 @@ class MPCConfig:
         for name, high in (("wall_margin", 0.05), ("band_inset", 0.01), ("band_capture", 0.05), ("height_margin", 0.05)):
             checks.real(name, getattr(self, name), 0.0, high)
         if self.weights is not None:
-            object.__setattr__(self, "weights", tuple(checks.real_array("weights", self.weights, (3,), low=0.0,
-                                                                         range_text="every entry >= 0")))
+            object.__setattr__(self, "weights", tuple(checks.real_array("weights", self.weights, (3,), low=0.0)))
         for name in ("voltage_weight", "penalty", "tol", "approach_rate"):
             checks.real(name, getattr(self, name), 0.0, 1e12, low_open=True)
         checks.integer("max_iter", self.max_iter, 1, 100_000)
@@ -122,14 +121,6 @@ class MPCConfig:
             raise TypeError(f"solver_options must be a dict of CasADi solver options, got {self.solver_options!r}")
         if self.params is not None and not isinstance(self.params, ScaraParams):
             raise TypeError(f"params must be a ScaraParams or None, got {type(self.params).__name__}")
-
-
-def default_weights(params: ScaraParams | None = None) -> np.ndarray:
-    """MPCConfig.weights' default: 1 / v_max_i^2, v_max_i = Umax_i / (kT_i u_i) the speed the
-    back-EMF allows at Umax (each joint's error in seconds at the axis' top speed)."""
-    params = DEFAULT_PARAMS if params is None else params
-    top_speed = params.voltage_limits / np.array([a.torque_constant * a.gear_ratio for a in params.axes])
-    return 1.0 / top_speed**2
 
 
 class MPCPolicy:
@@ -154,7 +145,8 @@ class MPCPolicy:
         self.wide_limit = np.array(obstacle.wide_voltage_limits, dtype=float)
         self.current_limit = np.array([a.current_limit for a in self.params.axes])
         self.control_dt = float(self.env.control_dt)
-        self.weights = np.array(config.weights) if config.weights is not None else default_weights(self.params)
+        top_speed = self.voltage_limit / np.array([a.torque_constant * a.gear_ratio for a in self.params.axes])
+        self.weights = np.array(config.weights) if config.weights is not None else 1.0 / top_speed**2
         self._build()
         self.solve_times: list[float] = []
         self.failures = 0

@@ -121,6 +121,9 @@ def real_array(name: str, value: Any, shape: tuple[int, ...], *, unit: str = "",
     complex, boolean, string and object contents are not.
     """
     what = f"{name} must be {_count(shape)} finite numbers{_unit(unit)}"
+    if not range_text and (low is not None or high is not None):  # the message names the allowed range
+        range_text = (f"every entry in [{low:g}, {high:g}]" if low is not None and high is not None
+                      else f"every entry >= {low:g}" if low is not None else f"every entry <= {high:g}")
     if range_text:
         what += f" with {range_text}"
     try:

@@ -3,10 +3,12 @@ every finished trial kept at once, a stopped search going on where it stopped, t
 
 import json
 
+import gymnasium as gym
+import numpy as np
 import pytest
 
 from agents.experiments import mpc_search
-from agents.policies.mpc import MPCConfig, default_weights
+from agents.policies.mpc import MPCConfig, MPCPolicy
 from scara_gym.model.checks import UserError
 
 
@@ -25,7 +27,7 @@ def fake_score(calls):
 def test_the_first_trial_is_the_published_configuration_and_the_best_is_the_highest_objective(tmp_path):
     record = mpc_search.tune_mpc(tmp_path, trials=6, episodes=3, score=fake_score({"n": 0}))
     assert record["trials"][0]["point"] == mpc_search.DEFAULT_POINT
-    assert mpc_search.mpc_config(mpc_search.DEFAULT_POINT) == MPCConfig(weights=tuple(default_weights()))
+    assert mpc_search.mpc_config(mpc_search.DEFAULT_POINT) == MPCConfig(weights=tuple(mpc_search.default_weights()))
     objectives = [t["figures"]["objective"] for t in record["trials"]]
     assert record["trials_run"] == 6 and record["best"] == objectives.index(max(objectives))
     best = json.loads((tmp_path / "best.json").read_text())["mpc"]
@@ -81,3 +83,9 @@ def test_one_trial_scores_the_heuristic_on_tuning_episodes():
     figures = controller.score({"distance": 0.08}, 2, "pd")
     assert 0.0 <= figures["success_1e-3"] <= 1.0 and -0.031 <= figures["objective"] <= 1.0
     assert 0 < figures["step_time_median"] <= figures["step_time_p95"]
+
+
+def test_the_default_weights_are_the_ones_the_mpc_uses_when_given_none():
+    pytest.importorskip("casadi")
+    env = gym.make(mpc_search.ENV_ID, control_mode="voltage")
+    np.testing.assert_array_equal(MPCPolicy(env, MPCConfig()).weights, mpc_search.default_weights())
