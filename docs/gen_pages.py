@@ -124,7 +124,8 @@ def headline_legend(data: dict) -> str:
             "episode succeeds without a collision. The interface ablation's rows (absolute, target-relative and "
             "residual action interfaces of one PPO) are in the full tables, `docs/results/comparison.md`. "
             "\"zero-shot\": a learned policy in c11-starts, random-targets or random-shifts whose run never trained "
-            "on that condition's draws (it measures transfer, not learning); its numbers are in the full tables.\n")
+            "on that condition's draws (it measures transfer, not learning); its numbers are in the full tables, "
+            "as are the rows of the runs that trained on none of those three (the C11 episode's alone).\n")
 
 
 def with_headline(text: str, table: str) -> str:

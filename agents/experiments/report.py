@@ -283,8 +283,19 @@ their rows are in the comparison's tables, not in the headline"""
 
 
 def headline_entries(entries: list[dict]) -> list[dict]:
-    """The entries the headline table shows: all but the ablations' (ABLATION_TAGS)."""
-    return [e for e in entries if not ABLATION_TAGS & set(e.get("tags") or ())]
+    """The entries the headline table shows: all but the ablations' (ABLATION_TAGS) and the learned
+    rows whose runs trained on none of the training distributions (zero-shot in all of them: issue
+    58 item 5 keeps zero-shot rows out of the headline; they are in the full tables)."""
+    return [e for e in entries if not ABLATION_TAGS & set(e.get("tags") or ()) and not _trained_on_no_draws(e)]
+
+
+def _trained_on_no_draws(record: dict) -> bool:
+    """Whether a learned or offline record's run trained on none of the training distributions'
+    draws (the registry's tags for a registered run, else the record's own)."""
+    if record["kind"] not in ("learned", "offline"):
+        return False
+    registered = RUNS.get(record.get("run"))
+    return not trained_for(registered.tags if registered else record.get("tags", ()))
 
 
 ZERO_SHOT = "zero-shot"

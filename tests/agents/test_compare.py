@@ -436,6 +436,16 @@ def test_a_zero_shot_cell_is_marked_in_the_tables_and_shows_no_numbers_in_the_he
     assert "| torch-ppo | learned, zero-shot | pd |" in table and "| torch-ppo-residual-random-replay | learned | pd |" in table
 
 
+def test_the_headline_leaves_out_the_runs_that_trained_on_no_training_distribution():
+    """A run trained on the C11 episode alone is zero-shot in all three training distributions: its
+    rows stay in the full tables and leave the headline; a classical row and a run trained on one
+    distribution's draws stay."""
+    entries = [_entry("c11", kind, run, seeds=[0]) for kind, run in
+               (("pd", "pd"), ("learned", "torch-ppo"), ("learned", "ppo-tuned-c11-starts"))]
+    assert [e["run"] for e in report.headline_entries(entries)] == ["pd", "ppo-tuned-c11-starts"]
+    assert "| torch-ppo |" in report.overview(entries) and "| torch-ppo |" not in report.headline_overview(entries)
+
+
 def test_the_readme_headline_table_is_the_published_comparisons_overview():
     """README's results table is generated (agents.experiments.report.overview over the headline
     conditions) from docs/results/comparison.json, not copied by hand."""
