@@ -288,7 +288,9 @@ def run_search(run: str, out: Path, trials: int = 20, max_steps: int = 1_000_000
     setup["recorded"] = {point_key(t["point"]): t for t in recorded}
     log = SearchLog(run, registered, setup, space, trials, out, recorded)
     if not ray.is_initialized():
-        ray.init(num_cpus=num_cpus, include_dashboard=False, log_to_driver=False)
+        # a Ray instance of its own ("local"): two searches side by side must not share one, whose
+        # CPU count the first one set
+        ray.init(address="local", num_cpus=num_cpus, include_dashboard=False, log_to_driver=False)
     attempt = 1 + sum(1 for _ in (out / "ray").glob("search-*")) if (out / "ray").is_dir() else 1
     scheduler = ASHAScheduler(time_attr="steps", max_t=max_steps, grace_period=grace_steps, reduction_factor=2)
     # the seed moved on by the trials recorded: the same seed would draw the recorded random points again
@@ -302,12 +304,7 @@ def run_search(run: str, out: Path, trials: int = 20, max_steps: int = 1_000_000
                                                  callbacks=[log.ray_callback()],
                                                  failure_config=tune.FailureConfig(max_failures=1)))
     tuner.fit()
-    record = log.write()
-    if record["best"] is not None:
-        best = record["trials"][record["best"]]["hyperparams"]
-        write_yaml(out / "best.yml", {env_id: {f"{control_mode}-tuned": best}})
-        write_yaml(out / "rl_zoo.yml", {env_id: rl_zoo_block(registered.sb3_algorithm, best, env_id)})
-    return record
+    return log.write()
 
 
 RUNG_KEYS = ("steps", "objective", "collision_rate", *(f"success_{band}" for band in BAND_NAMES))
@@ -359,6 +356,11 @@ class SearchLog:
         self.out.mkdir(parents=True, exist_ok=True)
         write_json(self.out / "search.json", record)
         write_atomic(self.out / "search.md", search_markdown(record))
+        if record["best"] is not None:  # the rule's choice so far, in both formats
+            best = record["trials"][record["best"]]["hyperparams"]
+            env_id, mode = self.setup["env_id"], self.setup["control_mode"]
+            write_yaml(self.out / "best.yml", {env_id: {f"{mode}-tuned": best}})
+            write_yaml(self.out / "rl_zoo.yml", {env_id: rl_zoo_block(self.registered.sb3_algorithm, best, env_id)})
         return record
 
     def ray_callback(self):

@@ -155,10 +155,13 @@ def _rung(steps, objective):
 
 
 def test_the_search_record_on_disk_follows_every_rung_so_a_killed_search_loses_nothing_scored(tmp_path):
+    yaml = pytest.importorskip("yaml")
     log = _tiny_log(tmp_path)
     on_disk = lambda: json.loads((tmp_path / "search.json").read_text())  # noqa: E731
+    best_yml = lambda: yaml.safe_load((tmp_path / "best.yml").read_text())[protocol.ENV_ID]["pd-tuned"]  # noqa: E731
     log.started("a", "_trial_a", {"gamma_complement": 0.01})
     assert on_disk()["trials"][0]["ended"] == "running" and on_disk()["trials_run"] == 0
+    assert not (tmp_path / "best.yml").exists()  # no trial ended: no choice yet
     log.rung("a", _rung(128, 0.2))
     assert on_disk()["trials"][0]["rungs"] == [{k: v for k, v in _rung(128, 0.2).items() if k != "training_iteration"}]
     log.started("b", "_trial_b", {"gamma_complement": 0.02})
@@ -169,9 +172,11 @@ def test_the_search_record_on_disk_follows_every_rung_so_a_killed_search_loses_n
     assert [t["ended"] for t in record["trials"]] == ["running", "stopped by ASHA"]
     assert record["trials"][0]["hyperparams"]["gamma"] == pytest.approx(0.99) and record["trials_asked"] == 20
     assert record["best"] == 1  # only an ended trial is chosen
+    assert best_yml()["gamma"] == pytest.approx(0.98)  # the choice so far, beside the record
     assert "1 of 20 trials run" in (tmp_path / "search.md").read_text()
     log.ended("a")
     assert on_disk()["trials"][0]["ended"] == "completed" and on_disk()["best"] == 0
+    assert best_yml()["gamma"] == pytest.approx(0.99) and (tmp_path / "rl_zoo.yml").exists()
 
 
 def test_a_resumed_search_keeps_the_recorded_rungs_of_the_trials_it_replays(tmp_path):
