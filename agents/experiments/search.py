@@ -324,6 +324,8 @@ class SearchLog:
         self.trials: dict[str, dict] = {}
 
     def started(self, trial_id: str, name: str, point: dict) -> None:
+        if trial_id in self.trials:  # Ray retrying a failed trial (FailureConfig): it keeps the rungs it scored
+            return
         prior = self.recorded.get(point_key(point))
         if prior is not None and prior["ended"] != "running":
             self.trials[trial_id] = {**prior, "replayed": True}

@@ -167,6 +167,8 @@ def test_the_search_record_on_disk_follows_every_rung_so_a_killed_search_loses_n
     log.started("b", "_trial_b", {"gamma_complement": 0.02})
     log.rung("b", _rung(128, 0.1))
     log.ended("b")  # ASHA stopped it at its first rung
+    log.started("a", "_trial_a", {"gamma_complement": 0.01})  # Ray retries it after a failure
+    assert on_disk()["trials"][0]["rungs"][0]["objective"] == 0.2  # the rung it scored is kept
     log.rung("a", _rung(256, 0.4))
     record = on_disk()
     assert [t["ended"] for t in record["trials"]] == ["running", "stopped by ASHA"]
