@@ -128,5 +128,11 @@ def is_zero_shot(record: Mapping) -> bool:
     own tags, for a run the registry does not hold."""
     if record["kind"] not in ("learned", "offline"):
         return False
+    return zero_shot(run_tags(record), record["condition"])
+
+
+def run_tags(record: Mapping):
+    """The tags of a record's run: the registry's for a registered run (so a record published
+    before its run's tags were completed reads them as they are now), else the record's own."""
     registered = RUNS.get(record.get("run"))
-    return zero_shot(registered.tags if registered else record.get("tags", ()), record["condition"])
+    return registered.tags if registered else record.get("tags", ())

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
-from agents.experiments.entries import is_zero_shot, row_of
+from agents.experiments.entries import is_zero_shot, row_of, run_tags
 from agents.experiments.evaluation import COLUMNS, DECISION_EPISODES
 from agents.experiments.registry import RUNS, trained_for
 from agents.experiments.runs import hyperparams_of
@@ -292,10 +292,7 @@ def headline_entries(entries: list[dict]) -> list[dict]:
 def _trained_on_no_draws(record: dict) -> bool:
     """Whether a learned or offline record's run trained on none of the training distributions'
     draws (the registry's tags for a registered run, else the record's own)."""
-    if record["kind"] not in ("learned", "offline"):
-        return False
-    registered = RUNS.get(record.get("run"))
-    return not trained_for(registered.tags if registered else record.get("tags", ()))
+    return record["kind"] in ("learned", "offline") and not trained_for(run_tags(record))
 
 
 ZERO_SHOT = "zero-shot"
