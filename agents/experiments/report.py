@@ -12,13 +12,12 @@ from agents.experiments.entries import is_zero_shot, row_of, run_tags
 from agents.experiments.evaluation import COLUMNS, DECISION_EPISODES
 from agents.experiments.registry import RUNS, trained_for
 from agents.experiments.runs import hyperparams_of
-from agents.experiments.statistics import episodes_of, interval_estimates, rate_claim, rate_text
+from agents.experiments.statistics import episodes_of, interval_estimates, iqm, rate_claim, rate_text
 from agents.experiments.targets import target_checks
 from agents.files import write_atomic
 from scara_gym import DEFAULT_PARAMS
 from scara_gym.benchmark.episodes import BAND_NAMES
 from scara_gym.benchmark.protocol import CONDITIONS, ENV_ID
-from scara_gym.extras import require
 
 
 def _pyplot():
@@ -458,14 +457,11 @@ def comparison_figures(entries: list[dict], traces: dict, groups: dict, out: Pat
             n = min(len(d["timesteps"]) for d in data)
             curves[f"{algorithm} ({mode})"] = (data[0]["timesteps"][:n], np.array([d["results"][:n].mean(axis=1) for d in data]))
     if curves:
-        require("rliable")
-        from rliable import metrics
-
         fig, ax = plt.subplots(figsize=(7, 4))
         for (label, (steps, returns)), color in zip(curves.items(), plt.cm.tab10.colors):
             point, interval = interval_estimates(
                 {label: returns[:, None, :]},
-                lambda s: np.array([metrics.aggregate_iqm(s[:, :, t]) for t in range(s.shape[-1])]), 500, 0)
+                lambda s: np.array([iqm(s[:, :, t]) for t in range(s.shape[-1])]), 500, 0)
             ax.plot(steps, point[label], color=color, label=f"{label}, {returns.shape[0]} seeds")
             ax.fill_between(steps, interval[label][0], interval[label][1], color=color, alpha=0.2)
         ax.set(xlabel="environment steps", ylabel="evaluation return (IQM over seeds, 95 % CI)",

@@ -81,17 +81,30 @@ def interval_estimates(scores: dict, function, reps: int, seed: int):
         np.random.set_state(state)
 
 
+def iqm(scores: np.ndarray) -> float:
+    """rliable's aggregate_iqm (scipy.stats.trim_mean(scores, 0.25, axis=None)), the same number to
+    the last bit: the same partition of the flattened scores and the mean of the same slice, without
+    scipy's per-call argument handling, which took 95 % of a bootstrap's time (2,000 calls per
+    interval). Scores that are not all finite go to rliable's own function (scipy's NaN rules)."""
+    flat = np.ravel(scores)
+    if flat.size == 0 or not np.isfinite(flat).all():
+        from rliable import metrics
+
+        return metrics.aggregate_iqm(scores)
+    low = int(0.25 * flat.size)
+    high = flat.size - low
+    trimmed = np.partition(flat, (low, high - 1))[low:high]
+    return np.mean(trimmed if np.issubdtype(trimmed.dtype, np.floating) else trimmed.astype(np.float64))
+
+
 def iqm_with_ci(scores: np.ndarray, reps: int = 2000, seed: int = 0) -> tuple[float, list[float]]:
     """rliable's IQM over runs x tasks and its 95 % stratified-bootstrap interval. One run (a
     classical policy): its episodes are the samples the bootstrap draws (rliable's stratified
     bootstrap resamples runs within each task, which one run cannot show any spread of)."""
-    require("rliable")
-    from rliable import metrics
-
     scores = np.asarray(scores)
     if scores.shape[0] == 1:
         scores = scores.T
-    point, interval = interval_estimates({"x": scores}, lambda s: np.array([metrics.aggregate_iqm(s)]), reps, seed)
+    point, interval = interval_estimates({"x": scores}, lambda s: np.array([iqm(s)]), reps, seed)
     return float(point["x"][0]), [float(interval["x"][0, 0]), float(interval["x"][1, 0])]
 
 

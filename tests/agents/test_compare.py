@@ -39,6 +39,28 @@ def test_iqm_and_probability_of_improvement_on_known_scores():
     assert tie == 0.5
 
 
+def test_the_iqm_is_rliables_to_the_last_bit():
+    """statistics.iqm replaces rliable's aggregate_iqm inside the bootstrap: the same number, bit for
+    bit (float64, float32 and integer scores, ties, every size from 1, NaN), so intervals do not move."""
+    from rliable import metrics
+
+    rng = np.random.default_rng(7)
+    for k in range(2000):
+        shape = (int(rng.integers(1, 9)), int(rng.integers(1, 40)))
+        scores = [rng.normal(size=shape), rng.choice([3.0, 1.2, 1.25, 1.3], size=shape),
+                  rng.integers(0, 5, size=shape), rng.uniform(1, 3, size=shape).astype(np.float32)][k % 4]
+        if k % 97 == 0:
+            scores = scores.astype(float)
+            scores.flat[0] = np.nan
+        expected, got = metrics.aggregate_iqm(scores), statistics.iqm(scores)
+        assert np.asarray(got).dtype == np.asarray(expected).dtype, (k, scores.dtype)
+        assert np.array_equal(got, expected, equal_nan=True), (k, got, expected)
+    scores = rng.uniform(1, 3, (5, 30))
+    point, interval = statistics.interval_estimates(
+        {"x": scores}, lambda s: np.array([metrics.aggregate_iqm(s)]), 300, 0)
+    assert statistics.iqm_with_ci(scores, reps=300) == (point["x"][0], [interval["x"][0, 0], interval["x"][1, 0]])
+
+
 def test_the_vectorized_probability_of_improvement_is_rliables():
     from rliable import metrics
 
