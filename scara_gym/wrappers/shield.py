@@ -284,17 +284,23 @@ class Shield:
         """The set-point the backup holds when it starts from the state of ``snapshot``."""
         return hold_and_climb(snapshot["x"][:3], snapshot["target"], self.lowest_height)
 
-    def at_rest(self, obs: np.ndarray, setpoint: np.ndarray) -> np.ndarray:
+    def hold_distance(self, setpoint: np.ndarray, n: int) -> np.ndarray:
+        """Per model (the first ``n``): the tip's x at the backup's held angles minus the wall's x."""
+        p = self.model_task.robot_params[:n]
+        hold_x = np.array([tip_position(setpoint[0], setpoint[1], setpoint[2], record)[0] for record in p])
+        return hold_x - p["wall_x"]
+
+    def at_rest(self, obs: np.ndarray, setpoint: np.ndarray, hold_distance: np.ndarray | None = None) -> np.ndarray:
         """Per model (rows of obs, in the models' order): at rest at the backup's ``setpoint``,
         clear of the wall (one step of the terminal test; certify also asks for REST_STEPS in a
-        row and a flushed actuator line).
+        row and a flushed actuator line). ``hold_distance``: `hold_distance(setpoint, len(obs))`,
+        which certify computes once per rollout rather than at every step.
         """
-        task = self.model_task
+        p = self.model_task.robot_params[:len(obs)]
         still = np.all(np.abs(obs[:, RATES]) < self.rest_rate, axis=1)
         held = np.all(np.abs(obs[:, Q][:, :2] - setpoint[:2]) < self.hold_tolerance, axis=1)
-        p = task.robot_params[:len(obs)]
-        hold_x = np.array([tip_position(setpoint[0], setpoint[1], setpoint[2], record)[0] for record in p])
-        hold_distance = hold_x - p["wall_x"]  # where the held angles put the tip
+        if hold_distance is None:
+            hold_distance = self.hold_distance(setpoint, len(obs))  # where the held angles put the tip
         # beside the wall's plane, or with a zone beside the zone (whose width holds the margin)
         clearance = self.wall_margin if self.zone is None else p["critical_distance"]
         beside = (np.abs(obs[:, WALL_DISTANCE]) >= clearance) & (np.abs(hold_distance) >= clearance) \
@@ -357,6 +363,7 @@ class Shield:
         if self.zone is not None and np.any(task.robots["critical"] == 1):
             return False  # already inside the zone: nothing from here is certified
         setpoint = self.backup_setpoint(snapshot)
+        hold_distance = self.hold_distance(setpoint, m)
         active = np.ones(m, dtype=bool)
         rested = np.zeros(m, dtype=int)
         actions = np.ascontiguousarray(np.tile(np.asarray(action, dtype=np.float64), (m, 1)))
@@ -370,7 +377,7 @@ class Shield:
                 return False
             actions = np.ascontiguousarray(np.broadcast_to(
                 task.setpoint_action(task.obs.astype(np.float64), setpoint), (m, 3)))
-            rest = self.at_rest(task.obs, setpoint) & self._line_flushed(actions)
+            rest = self.at_rest(task.obs, setpoint, hold_distance) & self._line_flushed(actions)
             rested = np.where(rest, rested + 1, 0)
             active &= ~(outcomes["reached"] | (rested >= REST_STEPS))
             if not active.any():
