@@ -420,7 +420,7 @@ FAST_PROPERTY_SEEDS = 5
 @pytest.mark.parametrize("seed", range(FAST_PROPERTY_SEEDS))
 def test_adversaries_behind_the_robust_shield_never_touch_a_wall_inside_its_ranges(seed):
     """The property on a few episodes (each adversary once, robots inside the ranges and at their
-    corners, delay and rate limit); the slow test below runs it on 500."""
+    corners, delay and rate limit); the slow test below runs it on the next seeds."""
     result = robust_property_episode(seed)
     assert result["collisions"] == 0, (result["adversary"], result["robot"])
 
