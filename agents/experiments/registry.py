@@ -179,6 +179,7 @@ RUNS = _runs(
     *_learning_curve_runs("td3", "TD3 (sbx-rl's)", "1e6 steps, a checkpoint every 62.5k"),
     *_learning_curve_runs("tqc", "TQC (sbx-rl's)", "1e6 steps, a checkpoint every 62.5k"),
     *_tuned_runs("ppo", "SB3 PPO", "1e7 steps, a checkpoint every 250k"),
+    *_tuned_runs("sac", "SAC (sbx-rl's)", "1e6 steps, a checkpoint every 62.5k"),
     RunSpec("ppo-gsde-c11-starts", "sb3", "SB3 PPO with gSDE, ppo.yml's recipe with use_sde on, on c11-starts' "
             "draws (starts from the start region), 1e7 steps, a checkpoint every 250k: the recipe its search "
             "starts from", sb3_algorithm="ppo", recipe="ppo", variant="gsde-c11-starts",

@@ -250,6 +250,52 @@ def test_the_rl_zoo_block_trains_in_rl_zoo(tmp_path):
     assert gymnasium.wrappers.TimeLimit is own_time_limit and "rl_zoo3" not in sys.modules
 
 
+@pytest.mark.slow
+def test_rl_zoo_trains_the_tuned_ppo_recipe_into_the_same_model_as_this_project(tmp_path):
+    """The tuned PPO block, written in RL Zoo's format and trained by RL Zoo's own command (its
+    DummyVecEnv of gym.make envs), gives bit for bit the model and normalizer that the project's
+    trainer gives (its compiled vector env) for the same seed: two rollouts here, 1e7 steps in
+    the experiments log. It fails if the block loses or renames a setting, or if the compiled
+    vector env and the single env part ways."""
+    import importlib.util
+    import io
+    import os
+    import pickle
+    import subprocess
+    import sys
+    import zipfile
+
+    if importlib.util.find_spec("rl_zoo3") is None:
+        pytest.skip("rl_zoo3 is not installed (the zoo extra)")
+    torch = pytest.importorskip("torch")
+    from agents.algorithms.sb3.training import train
+
+    hyper = {**hyperparams_of("ppo-tuned-c11-starts", protocol.ENV_ID), "n_timesteps": 2 * 16 * 256}
+    here = train("ppo", tmp_path / "here", protocol.ENV_ID, seed=0, hyperparams=hyper)
+    conf = tmp_path / "ppo.yml"
+    search.write_yaml(conf, {protocol.ENV_ID: search.rl_zoo_block("ppo", hyper, protocol.ENV_ID)})
+    done = subprocess.run([sys.executable, "-m", "rl_zoo3.train", "--algo", "ppo", "--env", protocol.ENV_ID,
+                           "--gym-packages", "scara_gym", "--conf-file", str(conf), "-f", str(tmp_path / "logs"),
+                           "--eval-freq", "-1", "--seed", "0", "--num-threads", "1"], capture_output=True, text=True,
+                          timeout=600, cwd=tmp_path, env={**os.environ, "NUMBA_CACHE_DIR": str(tmp_path / "numba")})
+    assert done.returncode == 0, done.stderr[-3000:]
+    zoo = tmp_path / "logs" / "ppo" / f"{protocol.ENV_ID}_1"
+
+    def weights(model_zip):
+        with zipfile.ZipFile(model_zip) as archive:
+            return torch.load(io.BytesIO(archive.read("policy.pth")), weights_only=True)
+
+    ours, theirs = weights(here / "model.zip"), weights(zoo / f"{protocol.ENV_ID}.zip")
+    assert ours.keys() == theirs.keys() and all(torch.equal(ours[k], theirs[k]) for k in ours)
+    # both pickles written by this test's own runs, in tmp_path
+    normalizers = [pickle.loads(p.read_bytes()) for p in (here / "vecnormalize.pkl",
+                                                          zoo / protocol.ENV_ID / "vecnormalize.pkl")]
+    for stats in ("obs_rms", "ret_rms"):
+        mine, zoo_stats = (getattr(n, stats) for n in normalizers)
+        assert np.array_equal(mine.mean, zoo_stats.mean) and np.array_equal(mine.var, zoo_stats.var)
+        assert mine.count == zoo_stats.count >= 2 * 16 * 256  # both collected the whole budget
+
+
 def test_the_tuned_recipes_are_the_published_searches_best_trials():
     """A `pd-tuned` block carries the searched values of its search's best trial (the record in
     results/search/RUN), only its budget and bookkeeping set apart."""
