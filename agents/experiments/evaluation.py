@@ -63,7 +63,8 @@ def learned_episodes(run_dir: Path, condition: Condition, mode: str, episodes: i
     kept there)."""
 
     def run() -> dict:
-        result = evaluate_condition(condition, lambda env: load_policy(run_spec(run_dir, shield), env), mode, episodes)
+        with OneTorchThread(lambda env: load_policy(run_spec(run_dir, shield), env)) as factory:
+            result = evaluate_condition(condition, factory, mode, episodes)
         result.pop("condition")
         return result
 
@@ -206,6 +207,35 @@ DECISION_EPISODES = 3
 """the evaluation episodes of a condition (its first seeds) a policy's compute per decision is timed over"""
 
 
+class OneTorchThread:
+    """A policy factory whose networks act on one torch thread, torch's own setting given back on
+    leaving (a context manager around the episodes). A decision is a batch-1 forward pass through a
+    few small layers: a second thread only adds its hand-off, and while other processes hold the
+    cores it waits for a time slice. On these 2-core machines beside three training jobs, torch's
+    default of a thread per core made each of torch-ppo's 64-wide layers take 6 ms (cProfile: 68 of
+    an evaluation's 88 s in torch.baddbmm). The env steps on one thread too. torch is set once the
+    factory's loader has imported it; a policy without a network never imports it."""
+
+    def __init__(self, factory) -> None:
+        self.factory, self.saved = factory, None
+
+    def __call__(self, env):
+        policy = self.factory(env)
+        torch = sys.modules.get("torch")
+        if torch is not None and self.saved is None:
+            self.saved = torch.get_num_threads()
+            torch.set_num_threads(1)
+        return policy
+
+    def __enter__(self) -> OneTorchThread:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        if self.saved is not None:
+            sys.modules["torch"].set_num_threads(self.saved)
+            self.saved = None
+
+
 class _TimedPolicy:
     """A policy whose every decision's wall time is kept (the call obs -> action, whatever it does:
     a network's forward pass, a shield's backup check, an MPC's solve)."""
@@ -231,21 +261,13 @@ def decision_time(condition: Condition, policy_factory, mode: str, episodes: int
     measured again by each comparison; on a loaded machine the scheduler's time slices (about
     15 ms) land in the 95th percentile, so the published figures come from an idle one."""
     timed: list[_TimedPolicy] = []
-    threads = {}  # torch's own setting, given back after
 
     def factory(env):
         timed.append(_TimedPolicy(policy_factory(env)))
-        torch = sys.modules.get("torch")  # imported by the policy's loader, if it is a network
-        if torch is not None and not threads:  # its forward pass on one thread, as the env steps on one
-            threads["torch"] = torch.get_num_threads()
-            torch.set_num_threads(1)
         return timed[-1]
 
-    try:
-        evaluate_condition(condition, factory, mode, min(episodes, condition.episodes), record=0)
-    finally:
-        if threads:
-            sys.modules["torch"].set_num_threads(threads["torch"])
+    with OneTorchThread(factory) as one_thread:
+        evaluate_condition(condition, one_thread, mode, min(episodes, condition.episodes), record=0)
     seconds = np.array([s for t in timed for s in t.seconds])
     return {"median": float(np.median(seconds)), "p95": float(np.percentile(seconds, 95)),
             "decisions": int(seconds.size)}
@@ -327,7 +349,8 @@ def evaluate(policies: list[str], control_mode: str = "pd", condition: str = "c1
             names.append(policy.name)
             return policy
 
-        result = evaluate_condition(condition, factory, control_mode, episodes, env_id, record=record)
+        with OneTorchThread(factory) as one_thread:
+            result = evaluate_condition(condition, one_thread, control_mode, episodes, env_id, record=record)
         traces[names[0]] = result["traces"]
         rows.append(summary_row(names[0], result))
     return rows, traces

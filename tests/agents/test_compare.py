@@ -174,6 +174,47 @@ def test_decision_time_is_the_wall_time_of_each_call_of_the_policy():
     assert fast["decisions"] == slow["decisions"] and fast["median"] < slow["median"] / 4
 
 
+def test_networks_act_on_one_torch_thread_during_episodes_and_the_setting_is_given_back():
+    """Every evaluation path (a run's episodes, the evaluate command's rows, the decision timing)
+    runs the policy's network on one torch thread and leaves torch's own setting as it found it,
+    also when the episodes fail."""
+    torch = pytest.importorskip("torch")
+    from agents.policies import PDPolicy
+
+    seen = []
+
+    def torch_pd(env):  # a policy whose loader imported torch: it notes the threads it acts on
+        pd = PDPolicy(env)
+
+        def act(obs):
+            seen.append(torch.get_num_threads())
+            return pd(obs)
+        return act
+
+    condition = CONDITIONS["c11-starts"]
+    before = torch.get_num_threads()
+    torch.set_num_threads(2)
+    try:
+        evaluation.decision_time(condition, torch_pd, "pd", episodes=1)
+        with evaluation.OneTorchThread(torch_pd) as factory:
+            evaluation.evaluate_condition(condition, factory, "pd", 1)
+        assert seen and set(seen) == {1} and torch.get_num_threads() == 2
+
+        def broken(env):
+            act = torch_pd(env)
+
+            def fail(obs):
+                act(obs)
+                raise RuntimeError("the policy failed")
+            return fail
+
+        with pytest.raises(RuntimeError, match="the policy failed"), evaluation.OneTorchThread(broken) as factory:
+            evaluation.evaluate_condition(condition, factory, "pd", 1)
+        assert torch.get_num_threads() == 2
+    finally:
+        torch.set_num_threads(before)
+
+
 def test_a_condition_without_a_shipped_optimal_solution_is_compared_without_it(monkeypatch, capsys):
     import agents.policies.optimal.policy
 
