@@ -22,6 +22,7 @@ import numpy as np
 
 from agents.algorithms.sb3.policy import SB3Policy
 from agents.experiments.checkpoints import checked_checkpoints, stage
+from agents.experiments.evaluation import OneTorchThread
 from agents.experiments.registry import RUNS, spec
 from agents.experiments.report import learning_curve_figure
 from agents.experiments.statistics import time_scores
@@ -99,8 +100,9 @@ def learning_curve(name: str, run_dirs: list[Path], episodes: int = 50, out: Pat
             for budget in chosen:
                 model_dir = Path(scratch) / str(budget)
                 stage(files, kept, budget, model_dir)
-                result = evaluate(condition, lambda env, d=model_dir: SB3Policy(env, d, trust=True),  # checked bytes
-                                  config["env_kwargs"]["control_mode"], env_id=config["env_id"], record=0)
+                with OneTorchThread(lambda env, d=model_dir: SB3Policy(env, d, trust=True)) as factory:  # checked bytes
+                    result = evaluate(condition, factory, config["env_kwargs"]["control_mode"], env_id=config["env_id"],
+                                      record=0)
                 rows.append({"steps": budget, **point(result)})
                 arrays[str(budget)] = {k: _raw(v) for k, v in result.items()
                                        if k.startswith(("success", "reach_time", "collisions"))}
