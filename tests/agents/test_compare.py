@@ -174,10 +174,12 @@ def test_decision_time_is_the_wall_time_of_each_call_of_the_policy():
     assert fast["decisions"] == slow["decisions"] and fast["median"] < slow["median"] / 4
 
 
-def test_networks_act_on_one_torch_thread_during_episodes_and_the_setting_is_given_back():
+def test_networks_act_on_one_torch_thread_during_episodes_and_the_setting_is_given_back(monkeypatch):
     """Every evaluation path (a run's episodes, the evaluate command's rows, the decision timing)
     runs the policy's network on one torch thread and leaves torch's own setting as it found it,
     also when the episodes fail."""
+    from pathlib import Path
+
     torch = pytest.importorskip("torch")
     from agents.policies import PDPolicy
 
@@ -189,16 +191,24 @@ def test_networks_act_on_one_torch_thread_during_episodes_and_the_setting_is_giv
         def act(obs):
             seen.append(torch.get_num_threads())
             return pd(obs)
+        act.name = "torch-pd"  # the evaluate command's row label
         return act
 
+    # every loader of the module hands out that policy (a run folder or a spec named, none read)
+    monkeypatch.setattr(evaluation, "run_spec", lambda run_dir, shield: "torch-pd")
+    monkeypatch.setattr(evaluation, "load_policy", lambda spec, env: torch_pd(env))
+    monkeypatch.setattr(evaluation, "make_policy", lambda spec, env: torch_pd(env))
     condition = CONDITIONS["c11-starts"]
     before = torch.get_num_threads()
     torch.set_num_threads(2)
     try:
-        evaluation.decision_time(condition, torch_pd, "pd", episodes=1)
-        with evaluation.OneTorchThread(torch_pd) as factory:
-            evaluation.evaluate_condition(condition, factory, "pd", 1)
-        assert seen and set(seen) == {1} and torch.get_num_threads() == 2
+        paths = {"decision time": lambda: evaluation.decision_time(condition, torch_pd, "pd", episodes=1),
+                 "a run's episodes": lambda: evaluation.learned_episodes(Path("a-run"), condition, "pd", 1),
+                 "evaluate": lambda: evaluation.evaluate(["torch-pd"], "pd", "c11-starts", 1, record=0)}
+        for path, run in paths.items():
+            seen.clear()
+            run()
+            assert seen and set(seen) == {1} and torch.get_num_threads() == 2, path
 
         def broken(env):
             act = torch_pd(env)

@@ -214,6 +214,21 @@ def _write_record(tmp_path, **change):
     return tmp_path / "search.json"
 
 
+def _train_in_rl_zoo(algo, conf, tmp_path, *more):
+    """RL Zoo's own command on the registered id with the block file ``conf``, seed 0, into
+    tmp_path/logs, in a subprocess (importing rl_zoo3 patches gymnasium for the whole process)."""
+    import os
+    import subprocess
+    import sys
+
+    done = subprocess.run([sys.executable, "-m", "rl_zoo3.train", "--algo", algo, "--env", protocol.ENV_ID,
+                           "--gym-packages", "scara_gym", "--conf-file", str(conf), "-f", str(tmp_path / "logs"),
+                           "--eval-freq", "-1", "--seed", "0", *more], capture_output=True, text=True, timeout=600,
+                          cwd=tmp_path, env={**os.environ, "NUMBA_CACHE_DIR": str(tmp_path / "numba-cache")})
+    assert done.returncode == 0, done.stderr[-3000:]
+    return done
+
+
 @pytest.mark.slow
 def test_the_rl_zoo_block_trains_in_rl_zoo(tmp_path):
     """The tuned recipe in RL Zoo's format trains with RL Zoo's own command on the registered id;
@@ -223,8 +238,6 @@ def test_the_rl_zoo_block_trains_in_rl_zoo(tmp_path):
     an info key "TimeLimit.truncated" at the time limit), which changed the rollout digests of
     tests/test_behaviour.py run after it in the same process."""
     import importlib.util
-    import os
-    import subprocess
     import sys
 
     import gymnasium
@@ -239,11 +252,7 @@ def test_the_rl_zoo_block_trains_in_rl_zoo(tmp_path):
         assert "library" not in block and "snapshot_freq" not in block
         conf = tmp_path / f"{algo}.yml"
         search.write_yaml(conf, {protocol.ENV_ID: block})
-        done = subprocess.run([sys.executable, "-m", "rl_zoo3.train", "--algo", algo, "--env", protocol.ENV_ID,
-                               "--gym-packages", "scara_gym", "--conf-file", str(conf), "-f", str(tmp_path / "logs"),
-                               "--eval-freq", "-1", "--seed", "0"], capture_output=True, text=True, timeout=600,
-                              cwd=tmp_path, env={**os.environ, "NUMBA_CACHE_DIR": str(tmp_path / "numba-cache")})
-        assert done.returncode == 0, done.stderr[-3000:]
+        done = _train_in_rl_zoo(algo, conf, tmp_path)
         saved = tmp_path / "logs" / algo / f"{protocol.ENV_ID}_1"
         assert (saved / f"{protocol.ENV_ID}.zip").is_file()
         assert f"('gamma', {hyper['gamma']})" in done.stdout  # the hyperparameters RL Zoo says it trains with
@@ -259,10 +268,7 @@ def test_rl_zoo_trains_the_tuned_ppo_recipe_into_the_same_model_as_this_project(
     vector env and the single env part ways."""
     import importlib.util
     import io
-    import os
     import pickle
-    import subprocess
-    import sys
     import zipfile
 
     if importlib.util.find_spec("rl_zoo3") is None:
@@ -274,11 +280,7 @@ def test_rl_zoo_trains_the_tuned_ppo_recipe_into_the_same_model_as_this_project(
     here = train("ppo", tmp_path / "here", protocol.ENV_ID, seed=0, hyperparams=hyper)
     conf = tmp_path / "ppo.yml"
     search.write_yaml(conf, {protocol.ENV_ID: search.rl_zoo_block("ppo", hyper, protocol.ENV_ID)})
-    done = subprocess.run([sys.executable, "-m", "rl_zoo3.train", "--algo", "ppo", "--env", protocol.ENV_ID,
-                           "--gym-packages", "scara_gym", "--conf-file", str(conf), "-f", str(tmp_path / "logs"),
-                           "--eval-freq", "-1", "--seed", "0", "--num-threads", "1"], capture_output=True, text=True,
-                          timeout=600, cwd=tmp_path, env={**os.environ, "NUMBA_CACHE_DIR": str(tmp_path / "numba")})
-    assert done.returncode == 0, done.stderr[-3000:]
+    _train_in_rl_zoo("ppo", conf, tmp_path, "--num-threads", "1")
     zoo = tmp_path / "logs" / "ppo" / f"{protocol.ENV_ID}_1"
 
     def weights(model_zip):
