@@ -485,6 +485,9 @@ def _add_learning_curve(sub) -> None:
     p.add_argument("--env-id", choices=ENV_IDS, default=ENV_ID, help="the id its runs trained on")
     p.add_argument("--episodes", type=int, default=50, help="tuning episodes per budget and seed")
     p.add_argument("--out", type=_folder, default=Path("runs/learning_curves"))
+    p.add_argument("--merge", type=_file, default=None, metavar="FILE",
+                   help="a NAME.json written before on the same episodes: its seeds not found under --runs are kept "
+                        "(seeds trained in different sittings, their checkpoints gone)")
     p.set_defaults(handler=_learning_curve)
 
 
@@ -497,7 +500,7 @@ def _learning_curve(args, argv) -> dict:
     if not folders:
         raise UserError(f"no finished run of {args.name} under {args.runs / args.env_id / 'pd' / args.name}; "
                         f"train one with scara-agents train {args.name} --out .../seedN")
-    data = learning_curve(args.name, folders, args.episodes, args.out)
+    data = learning_curve(args.name, folders, args.episodes, args.out, merge=args.merge)
     print(f"{args.name}: plateau {data['plateau']}; written to {args.out}")
     return data
 

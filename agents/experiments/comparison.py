@@ -126,8 +126,9 @@ def compare(runs_root: Path | None = Path("runs/baselines"), conditions: list[st
     """Every policy in every condition: (entries, traces per condition). episodes: per condition
     (None: the condition's own count; a dict: condition -> count, None or missing for its own;
     the C11 episode is one). only: kinds of ONLY_ROWS, evaluated alone (every other row left
-    out; no normalized time score: its references are left out too), to merge into a published
-    comparison (merge_entries). cache: a folder that keeps every
+    out; scored against the same references as in the full table, evaluated or read from
+    ``cache`` beside them: _ConditionTable.only), to merge into a published comparison
+    (merge_entries). cache: a folder that keeps every
     evaluation (learned runs': learned_episodes; the classical policies' and the MPC's:
     cached_evaluation). shielded: learned algorithms that also run behind
     scara_gym.wrappers.Shield (entries "ALGO + shield"), as PD does ("pd + shield") where any is
@@ -156,7 +157,7 @@ def compare(runs_root: Path | None = Path("runs/baselines"), conditions: list[st
         count = episodes.get(name) if isinstance(episodes, dict) else episodes
         table = _ConditionTable(get_condition(name), count, verbose, cache, mpc_latency)
         if only:
-            table.only(only, heuristics, groups, shielded)
+            table.only(only, heuristics, groups, shielded, include_optimal, include_mpc)
         else:
             table.classical(heuristics, shielded, include_optimal, robust_shield)
             if include_mpc:
@@ -276,20 +277,34 @@ class _ConditionTable:
             self.add(ROBUST_LABEL, "pd", None, "pd", runs, None, note=ROBUST_NOTE, shielded=True,
                      shield_range=ROBUST_RANGES, factory=robust_shield_pd)
 
-    def only(self, kinds, heuristics: dict, groups: dict, shielded) -> None:
-        """The rows of ``kinds`` (ONLY_ROWS) alone, as the full table computes them."""
+    def only(self, kinds, heuristics: dict, groups: dict, shielded, include_optimal: bool = True,
+             include_mpc: bool = True) -> None:
+        """The rows of ``kinds`` (ONLY_ROWS) alone, as the full table computes them: with the
+        heuristic's episodes (P(faster than the heuristic)) and the normalized time score's
+        references (pd + shield, the optimal replay or the MPC) evaluated beside them in a table
+        that is not published, from the cache where it keeps them."""
+        unknown = [kind for kind in kinds if kind not in ONLY_ROWS]
+        if unknown:
+            raise UserError(f"--only: unknown kind of row {unknown[0]!r}; the kinds are {sorted(ONLY_ROWS)}")
+        references = _ConditionTable(self.condition, self.episodes, False, self.cache)
+        references.classical(heuristics, shielded, include_optimal, robust_shield=False)
+        if include_mpc and not any(e.kind == "optimal" for e in references.entries):
+            references.mpc_reference()
+        self.reference = references.reference
         for kind in kinds:
             if kind == "mpc":
                 self.mpc(self.mpc_latency_rows)
             elif kind == "robust-shield":
                 self.robust_shield()
-            elif kind in ("learned-shielded", "learned"):  # the heuristic's episodes first: P(faster than heuristic)
-                scratch = _ConditionTable(self.condition, self.episodes, False, self.cache)
-                scratch.classical(heuristics, shielded, include_optimal=False, robust_shield=False)
-                self.reference = scratch.reference
-                self.learned(groups, self.cache, shielded, shields=(kind == "learned-shielded",))
             else:
-                raise UserError(f"--only: unknown kind of row {kind!r}; the kinds are {sorted(ONLY_ROWS)}")
+                self.learned(groups, self.cache, shielded, shields=(kind == "learned-shielded",))
+        self.time_scores(references)
+
+    def mpc_reference(self) -> None:
+        """The MPC's "voltage" row alone (the normalized time score's 1 where no optimal replay is)."""
+        label, mode, note = MPC_ROWS[0]
+        self.add(label, "mpc", None, mode, [mpc_episodes(self.condition, self.episodes, self.cache, mode=mode)], None,
+                 note=note)
 
     def mpc(self, latency: bool = True) -> None:
         """The nonlinear MPC and the real-time MPC with their nominal model in both control modes,
@@ -336,13 +351,16 @@ class _ConditionTable:
                     print(f"[{self.condition.name}] {e.name}: {1e6 * t['median']:.0f} us per decision (median), "
                           f"95th percentile {1e6 * t['p95']:.0f} us", flush=True)
 
-    def time_scores(self) -> None:
+    def time_scores(self, references: _ConditionTable | None = None) -> None:
         """Every entry's normalized time score (statistics.time_score_fields) against this
-        condition's "pd + shield" (0) and time_score_reference's entry (1); none without both."""
-        found = time_score_reference([e.record() for e in self.entries])
+        condition's "pd + shield" (0) and time_score_reference's entry (1), found among the
+        ``references`` table's entries (default: this table's); none without both."""
+        references = self if references is None else references
+        found = time_score_reference([e.record() for e in references.entries])
         if found is None:
             return
-        zero, one = (self.runs[[e.name for e in self.entries].index(label)] for label in found)
+        labels = [e.name for e in references.entries]
+        zero, one = (references.runs[labels.index(label)] for label in found)
         for e, runs in zip(list(self.entries), self.runs):
             fields = time_score_fields(runs, zero, one, found[1], e.seeds)
             scores = fields.pop("per_seed_scores", [])
@@ -390,7 +408,7 @@ ONLY_ROWS = {
 not to re-evaluate every learned run): which entries (records) they are. "learned": the learned
 and offline rows (without an added shield) of the runs under ``--runs``; merged, they replace
 those runs' rows only (merge_entries), so a folder holding just new runs adds their rows. Rows
-evaluated alone get no normalized time score (its reference rows are not evaluated with them)."""
+evaluated alone get the normalized time score of the full table (_ConditionTable.only)."""
 
 
 def merge_entries(published: list[dict], fresh: list[dict], kinds) -> list[dict]:

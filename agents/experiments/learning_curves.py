@@ -78,10 +78,13 @@ def plateau(points: list[dict], budgets_: list[int]) -> dict:
 
 
 def learning_curve(name: str, run_dirs: list[Path], episodes: int = 50, out: Path | None = None,
-                   verbose: bool = True, first_budget: int | None = None) -> dict:
+                   verbose: bool = True, first_budget: int | None = None, merge: Path | None = None) -> dict:
     """Score every seed's checkpoints of the registered run ``name`` (folders ``run_dirs``, one per
     seed) at `budgets` (from ``first_budget``) on ``episodes`` tuning episodes of its ``trained_on`` condition; with
-    ``out``, write ``NAME.json`` (summary, plateau, raw arrays) and ``NAME.png`` there."""
+    ``out``, write ``NAME.json`` (summary, plateau, raw arrays) and ``NAME.png`` there. With ``merge``
+    (a NAME.json written before, on the same episodes), its seeds that ``run_dirs`` do not score
+    again are kept: seeds trained in different sittings make one curve without their checkpoints
+    being kept for ever."""
     run = spec(name)
     if "learning-curve" not in run.tags or run.trained_on is None:
         raise UserError(f"{name} is not a learning-curve run (tag 'learning-curve' and a trained_on condition); "
@@ -110,6 +113,8 @@ def learning_curve(name: str, run_dirs: list[Path], episodes: int = 50, out: Pat
                     print(f"{run_dir}: {budget:,} steps {rows[-1]}", flush=True)
         seeds[str(config["seed"])] = rows
         raw[str(config["seed"])] = arrays
+    if merge is not None:
+        env_ids.add(_merge_seeds(json_record(merge), name, condition, episodes, seeds, raw, merge))
     if len(env_ids) != 1:
         raise UserError(f"the run folders of {name} were trained on different ids {sorted(env_ids)}")
     common = sorted(set.intersection(*({r["steps"] for r in rows} for rows in seeds.values())))
@@ -128,6 +133,20 @@ def learning_curve(name: str, run_dirs: list[Path], episodes: int = 50, out: Pat
         write_json(out / f"{name}.json", data, indent=None)  # compact: the raw episodes are most of it
         learning_curve_figure(data, out / f"{name}.png")
     return data
+
+
+def _merge_seeds(published: dict, name: str, condition, episodes: int, seeds: dict, raw: dict, path: Path) -> str:
+    """Add to ``seeds`` and ``raw`` the seeds of the ``published`` curve they lack, once it is the
+    same run scored on the same episodes; returns its env id."""
+    scored_on = f"{condition.name}: {episodes} episodes from seed {condition.seed}"
+    for key, wanted in (("run", name), ("scored_on", scored_on), ("episodes", episodes)):
+        if published.get(key) != wanted:
+            raise UserError(f"--merge {path}: its {key} is {published.get(key)!r}, not {wanted!r}; a curve merges "
+                            "only with one of the same run scored on the same tuning episodes")
+    for seed, rows in published["seeds"].items():
+        if seed not in seeds:
+            seeds[seed], raw[seed] = rows, published["raw"][seed]
+    return published["env_id"]
 
 
 def _raw(values) -> list:

@@ -654,6 +654,51 @@ def test_only_and_merge_put_one_kind_of_row_into_a_published_comparison(tmp_path
         curves_module.merge_curves(json.loads(path.read_text()), ["robust-shield"], verbose=False)
 
 
+def _shielded_pd_as_mpc(calls: list, p95: float, record):
+    """A stand-in for the MPC's episodes (the rows' logic under test, not the MPC): PD behind the
+    shield with made-up solve times (95th percentile ``p95`` s); record(condition, mode) of each
+    call appended to ``calls``."""
+    from scara_gym.benchmark import protocol
+
+    def stand_in(condition, episodes, cache, mode="voltage"):
+        calls.append(record(condition, mode))
+        result = protocol.evaluate(condition, lambda env: comparison.Shield(env, comparison.PDPolicy(env)), "pd",
+                                   episodes)
+        result.pop("condition")
+        result["solve_time"] = {"median": 0.004, "p95": p95, "worst": 0.05, "solves": 10, "failures": 0}
+        return result
+
+    return stand_in
+
+
+def test_rows_evaluated_alone_get_the_time_score_of_the_full_table(tmp_path, monkeypatch):
+    """``compare --only learned``: a run's rows scored against the same references (pd + shield:
+    0, the optimal replay or else the MPC: 1) as in the full table, to the last bit."""
+    from agents.algorithms.torch_ppo import Config, train as train_torch_ppo
+
+    runs = tmp_path / "runs"
+    train_torch_ppo(Config(num_envs=2, num_steps=8, num_minibatches=1, update_epochs=1, total_timesteps=16, seed=3,
+                           out=str(runs / LATEST_ENV_ID / "pd" / "torch-ppo" / "seed3")))
+    mpc_calls = []
+    stand_in = _shielded_pd_as_mpc(mpc_calls, p95=0.005, record=lambda condition, mode: mode)
+    monkeypatch.setattr(comparison, "mpc_episodes", stand_in)
+    monkeypatch.setattr(comparison, "rti_episodes", stand_in)
+    kwargs = dict(episodes=1, verbose=False, heuristics=HEURISTICS, decision_times=False, mpc_latency=False)
+    full = {e["name"]: e for e in comparison.compare(runs, ["c11"], **kwargs)[0]}
+    mpc_calls.clear()
+    alone = comparison.compare(runs, ["c11"], only=("learned",), **kwargs)[0]
+    assert [e["name"] for e in alone] == ["torch-ppo"] and mpc_calls == []  # the optimal replay is the reference
+    scored = {k: v for k, v in full["torch-ppo"].items() if k.startswith("time_score") or k == "per_seed"}
+    assert scored["time_score_reference"] == "optimal" and scored["time_score_episodes"] == 1
+    assert {k: alone[0][k] for k in scored} == scored
+    # without the optimal replay the MPC is the reference, evaluated beside the rows (from the cache where kept)
+    alone = comparison.compare(runs, ["c11"], only=("learned",), include_optimal=False, **kwargs)[0]
+    assert alone[0]["time_score_reference"] == "mpc" and mpc_calls == ["voltage"]
+    without = comparison.compare(runs, ["c11"], only=("learned",), include_optimal=False, include_mpc=False,
+                                 **kwargs)[0]
+    assert "time_score_reference" not in without[0]  # no reference, no score: as the full table without both
+
+
 def test_run_names_pick_the_runs_whose_rows_are_evaluated(tmp_path, monkeypatch):
     seen = []
     monkeypatch.setattr(comparison, "learned_runs", lambda root: {("ppo", "pd"): [tmp_path], ("sac", "pd"): [tmp_path]})
@@ -723,18 +768,10 @@ def test_the_mpc_under_its_own_latency_acts_its_p95_solve_time_late(monkeypatch,
     """A row per MPC mode with ceil(p95 solve time / control step) more steps of actuation delay
     than the condition's own, named by the field added_delay; the time score's reference stays
     the MPC without it. (The MPC is stood in for by pd + shield: the rows' logic is under test.)"""
-    from scara_gym.benchmark import protocol
 
     delays = []
-
-    def stand_in(condition, episodes, cache, mode="voltage"):
-        delays.append((mode, condition.env_kwargs.get("action_delay", 0)))
-        result = protocol.evaluate(condition, lambda env: comparison.Shield(env, comparison.PDPolicy(env)), "pd",
-                                   episodes)
-        result.pop("condition")
-        result["solve_time"] = {"median": 0.004, "p95": 0.0251, "worst": 0.05, "solves": 10, "failures": 0}
-        return result
-
+    stand_in = _shielded_pd_as_mpc(delays, p95=0.0251,
+                                   record=lambda condition, mode: (mode, condition.env_kwargs.get("action_delay", 0)))
     monkeypatch.setattr(comparison, "mpc_episodes", stand_in)
     entries, _ = comparison.compare(None, [condition], episodes=1, verbose=False, heuristics=HEURISTICS,
                                     include_optimal=False, decision_times=False)

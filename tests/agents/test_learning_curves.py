@@ -91,3 +91,19 @@ def test_a_tiny_run_gives_a_curve_with_its_raw_episodes(tmp_path, capsys):
     assert written["budgets"] == data["budgets"] and (tmp_path / "out" / "ppo-c11-starts.png").stat().st_size > 0
     with pytest.raises(ValueError, match="is not a learning-curve run"):
         learning_curves.learning_curve("ppo", folders, episodes=2)
+    # a curve written before keeps the seeds this call does not score again (another sitting's seed 7)
+    published = json.loads((tmp_path / "out" / "ppo-c11-starts.json").read_text())
+    published["seeds"]["7"] = [dict(row, **{"success_1e-3": 1.0 - row["success_1e-3"]}) for row in data["seeds"]["0"]]
+    published["raw"]["7"] = published["raw"].pop("0")
+    published["seeds"].pop("0")
+    (tmp_path / "before.json").write_text(json.dumps(published))
+    merged = learning_curves.learning_curve("ppo-c11-starts", folders, episodes=2, first_budget=128,
+                                             merge=tmp_path / "before.json")
+    assert sorted(merged["seeds"]) == ["0", "7"] and merged["seeds"]["0"] == data["seeds"]["0"]
+    assert merged["raw"]["7"] == published["raw"]["7"]
+    assert [m["success_1e-3"] for m in merged["mean"]] == [0.5, 0.5, 0.5]  # the mean of s and 1 - s
+    published["episodes"] = 3
+    (tmp_path / "other.json").write_text(json.dumps(published))
+    with pytest.raises(ValueError, match="its episodes is 3, not 2"):
+        learning_curves.learning_curve("ppo-c11-starts", folders, episodes=2, first_budget=128,
+                                       merge=tmp_path / "other.json")
