@@ -136,6 +136,11 @@ def _learning_curve_runs(algo: str, label: str, budget: str) -> list[RunSpec]:
             for condition, (note, tag) in CURVE_DRAWS.items()]
 
 
+TUNED_FROM = {"ppo": "ppo-c11-starts", "sac": "sac-c11-starts"}
+"""algorithm -> the search (results/search/NAME) whose best trial its YAML block "pd-tuned" is; a
+search on other draws (ppo-random-targets) is published beside them without being adopted"""
+
+
 def _tuned_runs(algo: str, label: str, budget: str) -> list[RunSpec]:
     """The searched recipe of ``algo`` (its YAML block "pd-tuned-CONDITION": the best trial of
     ``scara-agents search``, results/search/) trained on each condition of CURVE_DRAWS: the standard

@@ -299,15 +299,18 @@ def test_rl_zoo_trains_the_tuned_ppo_recipe_into_the_same_model_as_this_project(
 
 
 def test_the_tuned_recipes_are_the_published_searches_best_trials():
-    """A `pd-tuned` block carries the searched values of its search's best trial (the record in
-    results/search/RUN), only its budget and bookkeeping set apart."""
+    """A `pd-tuned` block carries the searched values of the best trial of the search the
+    registry names for it (registry.TUNED_FROM: the record in results/search/RUN), only its
+    budget and bookkeeping set apart; every published record's best.yml is its best trial, and a
+    finished search on c11-starts' draws (the searches that give the recipes) is adopted."""
     yaml = pytest.importorskip("yaml")
     from pathlib import Path
 
     from agents.algorithms.sb3.hyperparams import load_hyperparams
+    from agents.experiments.registry import TUNED_FROM
 
     published = Path(__file__).resolve().parents[2] / "results" / "search"
-    checked = 0
+    adopted = set()
     for record_path in sorted(published.glob("*/search.json")):
         record = json.loads(record_path.read_text())
         if record.get("algorithm") not in search.SPACES or record["best"] is None:
@@ -315,10 +318,14 @@ def test_the_tuned_recipes_are_the_published_searches_best_trials():
         best = yaml.safe_load((record_path.parent / "best.yml").read_text())[record["env_id"]]
         best = best[f"{record['control_mode']}-tuned"]
         assert best == record["trials"][record["best"]]["hyperparams"]
-        if record["trials_run"] < record["trials_asked"]:
-            continue  # a search still going: its recipe is not adopted yet
+        finished = record["trials_run"] == record["trials_asked"]
+        if TUNED_FROM.get(record["algorithm"]) != record["run"]:
+            assert not (finished and record["condition"].startswith("c11-starts")), \
+                f"{record['run']}: a finished search on c11-starts that no recipe is tuned from"
+            continue
+        assert finished, f"{record['run']}: a recipe adopted from a search still going"
         tuned = load_hyperparams(record["algorithm"], record["env_id"], record["control_mode"], "tuned")
         searched = set(search.decode(record["trials"][record["best"]]["point"])) | {"normalize"}
         assert {k: tuned[k] for k in searched} == {k: best[k] for k in searched}, record_path
-        checked += 1
-    assert checked >= 1
+        adopted.add(record["algorithm"])
+    assert adopted == set(TUNED_FROM)  # every recipe's search is published
