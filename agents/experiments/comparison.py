@@ -288,8 +288,6 @@ class _ConditionTable:
             raise UserError(f"--only: unknown kind of row {unknown[0]!r}; the kinds are {sorted(ONLY_ROWS)}")
         references = _ConditionTable(self.condition, self.episodes, False, self.cache)
         references.classical(heuristics, shielded, include_optimal, robust_shield=False)
-        if include_mpc and not any(e.kind == "optimal" for e in references.entries):
-            references.mpc_reference()
         self.reference = references.reference
         for kind in kinds:
             if kind == "mpc":
@@ -298,12 +296,17 @@ class _ConditionTable:
                 self.robust_shield()
             else:
                 self.learned(groups, self.cache, shielded, shields=(kind == "learned-shielded",))
+        if include_mpc and not any(e.kind == "optimal" for e in references.entries):
+            references.mpc_reference(self)
         self.time_scores(references)
 
-    def mpc_reference(self) -> None:
-        """The MPC's "voltage" row alone (the normalized time score's 1 where no optimal replay is)."""
+    def mpc_reference(self, evaluated: _ConditionTable) -> None:
+        """The MPC's "voltage" row alone (the normalized time score's 1 where no optimal replay is):
+        the one of the ``evaluated`` table where it has it (not evaluated twice), else evaluated."""
         label, mode, note = MPC_ROWS[0]
-        self.add(label, "mpc", None, mode, [mpc_episodes(self.condition, self.episodes, self.cache, mode=mode)], None,
+        runs = [r for e, r in zip(evaluated.entries, evaluated.runs) if e.name == label]
+        self.add(label, "mpc", None, mode,
+                 runs[0] if runs else [mpc_episodes(self.condition, self.episodes, self.cache, mode=mode)], None,
                  note=note)
 
     def mpc(self, latency: bool = True) -> None:

@@ -92,6 +92,7 @@ def learning_curve(name: str, run_dirs: list[Path], episodes: int = 50, out: Pat
     if not run_dirs:
         raise UserError(f"no run folders of {name} given")
     condition = tuning(run.trained_on, episodes)
+    scored_on = f"{condition.name}: {episodes} episodes from seed {condition.seed}"
     seeds, raw, env_ids = {}, {}, set()
     for run_dir in map(Path, run_dirs):
         config = json_record(run_dir / "config.json")
@@ -114,14 +115,14 @@ def learning_curve(name: str, run_dirs: list[Path], episodes: int = 50, out: Pat
         seeds[str(config["seed"])] = rows
         raw[str(config["seed"])] = arrays
     if merge is not None:
-        env_ids.add(_merge_seeds(json_record(merge), name, condition, episodes, seeds, raw, merge))
+        env_ids.add(_merge_seeds(json_record(merge), name, scored_on, episodes, seeds, raw, merge))
     if len(env_ids) != 1:
         raise UserError(f"the run folders of {name} were trained on different ids {sorted(env_ids)}")
     common = sorted(set.intersection(*({r["steps"] for r in rows} for rows in seeds.values())))
     mean = [{key: float(np.mean([next(r for r in rows if r["steps"] == b)[key] for rows in seeds.values()]))
              for key in seeds[next(iter(seeds))][0]} for b in common]
     data = {"run": name, "description": run.description, "env_id": env_ids.pop(), "trained_on": run.trained_on,
-            "scored_on": f"{condition.name}: {episodes} episodes from seed {condition.seed}",
+            "scored_on": scored_on,
             "episodes": episodes, "budgets": common, "seeds": seeds, "mean": mean,
             "plateau": plateau(mean, common) if common else {"plateau": None, "why": "no budget common to the seeds"},
             "rule": f"plateau: under {PLATEAU:.0%} change per doubling of the budget over the last doubling "
@@ -135,10 +136,10 @@ def learning_curve(name: str, run_dirs: list[Path], episodes: int = 50, out: Pat
     return data
 
 
-def _merge_seeds(published: dict, name: str, condition, episodes: int, seeds: dict, raw: dict, path: Path) -> str:
+def _merge_seeds(published: dict, name: str, scored_on: str, episodes: int, seeds: dict, raw: dict,
+                 path: Path) -> str:
     """Add to ``seeds`` and ``raw`` the seeds of the ``published`` curve they lack, once it is the
     same run scored on the same episodes; returns its env id."""
-    scored_on = f"{condition.name}: {episodes} episodes from seed {condition.seed}"
     for key, wanted in (("run", name), ("scored_on", scored_on), ("episodes", episodes)):
         if published.get(key) != wanted:
             raise UserError(f"--merge {path}: its {key} is {published.get(key)!r}, not {wanted!r}; a curve merges "

@@ -697,6 +697,10 @@ def test_rows_evaluated_alone_get_the_time_score_of_the_full_table(tmp_path, mon
     without = comparison.compare(runs, ["c11"], only=("learned",), include_optimal=False, include_mpc=False,
                                  **kwargs)[0]
     assert "time_score_reference" not in without[0]  # no reference, no score: as the full table without both
+    mpc_calls.clear()  # the MPC's own rows alone: its "voltage" row is also the reference, evaluated once
+    rows = comparison.compare(runs, ["c11"], only=("mpc",), include_optimal=False, **kwargs)[0]
+    assert mpc_calls == ["voltage", "pd", "voltage", "pd"]  # the MPC's two modes, then the real-time MPC's
+    assert rows[0]["name"] == "mpc" and rows[0]["time_score_reference"] == "mpc"
 
 
 def test_run_names_pick_the_runs_whose_rows_are_evaluated(tmp_path, monkeypatch):

@@ -307,7 +307,7 @@ def test_the_tuned_recipes_are_the_published_searches_best_trials():
     from pathlib import Path
 
     from agents.algorithms.sb3.hyperparams import load_hyperparams
-    from agents.experiments.registry import TUNED_FROM
+    from agents.experiments.registry import TUNED_FROM, spec
 
     published = Path(__file__).resolve().parents[2] / "results" / "search"
     adopted = set()
@@ -320,7 +320,7 @@ def test_the_tuned_recipes_are_the_published_searches_best_trials():
         assert best == record["trials"][record["best"]]["hyperparams"]
         finished = record["trials_run"] == record["trials_asked"]
         if TUNED_FROM.get(record["algorithm"]) != record["run"]:
-            assert not (finished and record["condition"].startswith("c11-starts")), \
+            assert not (finished and spec(record["run"]).trained_on == "c11-starts"), \
                 f"{record['run']}: a finished search on c11-starts that no recipe is tuned from"
             continue
         assert finished, f"{record['run']}: a recipe adopted from a search still going"
