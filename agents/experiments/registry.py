@@ -11,6 +11,7 @@ variant came about, and its pilots, is in ``docs/experiments.md``.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import NamedTuple
 
 from scara_gym.benchmark.protocol import CONDITIONS
 from scara_gym.model.checks import UserError
@@ -136,18 +137,30 @@ def _learning_curve_runs(algo: str, label: str, budget: str) -> list[RunSpec]:
             for condition, (note, tag) in CURVE_DRAWS.items()]
 
 
-TUNED_FROM = {"ppo": "ppo-c11-starts", "sac": "sac-c11-starts"}
-"""algorithm -> the search (results/search/NAME) whose best trial its YAML block "pd-tuned" is; a
-search on other draws (ppo-random-targets) is published beside them without being adopted"""
+class Tuned(NamedTuple):
+    """Where a tuned recipe comes from and where it is written."""
+
+    search: str
+    """the search (a registered run; its record: results/search/NAME) whose best trial the recipe is"""
+    variant: str
+    """its YAML block in the search's algorithm's file: "MODE-VARIANT", and "MODE-VARIANT-CONDITION"
+    for each condition of CURVE_DRAWS"""
 
 
-def _tuned_runs(algo: str, label: str, budget: str) -> list[RunSpec]:
-    """The searched recipe of ``algo`` (its YAML block "pd-tuned-CONDITION": the best trial of
+TUNED_FROM = {"ppo": Tuned("ppo-c11-starts", "tuned"), "ppo-gsde": Tuned("ppo-gsde-c11-starts", "gsde-tuned"),
+              "sac": Tuned("sac-c11-starts", "tuned")}
+"""tuned recipe (the first part of its runs' names) -> where it comes from. A search on other draws
+(ppo-random-targets) is published beside them without being adopted."""
+
+
+def _tuned_runs(recipe: str, algo: str, label: str, budget: str, tags: frozenset[str] = frozenset()) -> list[RunSpec]:
+    """The searched ``recipe`` of TUNED_FROM (its YAML block "pd-VARIANT-CONDITION": the best trial of
     ``scara-agents search``, results/search/) trained on each condition of CURVE_DRAWS: the standard
     algorithm's rows, whose first seeds' checkpoints are also its learning curve."""
-    return [RunSpec(f"{algo}-tuned-{condition}", "sb3", f"{label}, the searched recipe on {condition}' draws{note}, "
-                    f"{budget}", sb3_algorithm=algo, recipe=algo, variant=f"tuned-{condition}",
-                    tags=frozenset({"standard", "tuned", tag, "learning-curve"}), trained_on=condition)
+    variant = TUNED_FROM[recipe].variant
+    return [RunSpec(f"{recipe}-tuned-{condition}", "sb3", f"{label}, the searched recipe on {condition}' draws{note}, "
+                    f"{budget}", sb3_algorithm=algo, recipe=algo, variant=f"{variant}-{condition}",
+                    tags=frozenset({"standard", "tuned", tag, "learning-curve"}) | tags, trained_on=condition)
             for condition, (note, tag) in CURVE_DRAWS.items()]
 
 
@@ -183,8 +196,9 @@ RUNS = _runs(
     *_learning_curve_runs("sac", "SAC (sbx-rl's)", "1e6 steps, a checkpoint every 62.5k"),
     *_learning_curve_runs("td3", "TD3 (sbx-rl's)", "1e6 steps, a checkpoint every 62.5k"),
     *_learning_curve_runs("tqc", "TQC (sbx-rl's)", "1e6 steps, a checkpoint every 62.5k"),
-    *_tuned_runs("ppo", "SB3 PPO", "1e7 steps, a checkpoint every 250k"),
-    *_tuned_runs("sac", "SAC (sbx-rl's)", "1e6 steps, a checkpoint every 62.5k"),
+    *_tuned_runs("ppo", "ppo", "SB3 PPO", "1e7 steps, a checkpoint every 250k"),
+    *_tuned_runs("ppo-gsde", "ppo", "SB3 PPO with gSDE", "1e7 steps, a checkpoint every 250k", frozenset({"gsde"})),
+    *_tuned_runs("sac", "sac", "SAC (sbx-rl's)", "1e6 steps, a checkpoint every 62.5k"),
     RunSpec("ppo-gsde-c11-starts", "sb3", "SB3 PPO with gSDE, ppo.yml's recipe with use_sde on, on c11-starts' "
             "draws (starts from the start region), 1e7 steps, a checkpoint every 250k: the recipe its search "
             "starts from", sb3_algorithm="ppo", recipe="ppo", variant="gsde-c11-starts",

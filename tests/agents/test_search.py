@@ -307,7 +307,7 @@ def test_the_tuned_recipes_are_the_published_searches_best_trials():
     from pathlib import Path
 
     from agents.algorithms.sb3.hyperparams import load_hyperparams
-    from agents.experiments.registry import TUNED_FROM, spec
+    from agents.experiments.registry import CURVE_DRAWS, TUNED_FROM, spec
 
     published = Path(__file__).resolve().parents[2] / "results" / "search"
     adopted = set()
@@ -319,13 +319,19 @@ def test_the_tuned_recipes_are_the_published_searches_best_trials():
         best = best[f"{record['control_mode']}-tuned"]
         assert best == record["trials"][record["best"]]["hyperparams"]
         finished = record["trials_run"] == record["trials_asked"]
-        if TUNED_FROM.get(record["algorithm"]) != record["run"]:
+        recipes = [recipe for recipe, tuned in TUNED_FROM.items() if tuned.search == record["run"]]
+        if not recipes:
             assert not (finished and spec(record["run"]).trained_on == "c11-starts"), \
                 f"{record['run']}: a finished search on c11-starts that no recipe is tuned from"
             continue
         assert finished, f"{record['run']}: a recipe adopted from a search still going"
-        tuned = load_hyperparams(record["algorithm"], record["env_id"], record["control_mode"], "tuned")
+        (recipe,) = recipes
+        tuned = load_hyperparams(record["algorithm"], record["env_id"], record["control_mode"],
+                                 TUNED_FROM[recipe].variant)
         searched = set(search.decode(record["trials"][record["best"]]["point"])) | {"normalize"}
         assert {k: tuned[k] for k in searched} == {k: best[k] for k in searched}, record_path
-        adopted.add(record["algorithm"])
+        for condition in CURVE_DRAWS:  # the runs of each condition train this block
+            assert hyperparams_of(f"{recipe}-tuned-{condition}", record["env_id"]).items() >= \
+                {k: tuned[k] for k in searched}.items()
+        adopted.add(recipe)
     assert adopted == set(TUNED_FROM)  # every recipe's search is published

@@ -72,11 +72,17 @@ ENV_CASES = [("pd-random", "NextStep"), ("wall", "NextStep"), ("physics", "SameS
              ("voltage", "NextStep"), ("voltage-slew", "NextStep"), ("starts", "SameStep"),
              ("pd-free", "NextStep"), ("pd-free", "SameStep")]
 
+ENDS = {"pd-random": "collisions", "pd-free": "successes", "voltage": "truncations", "physics": "collisions",
+        "wall": "collisions", "delay-slew": "collisions", "voltage-slew": "truncations", "starts": "truncations"}
+"""how a config's episodes end, which its case asserts happened"""
 
 
-def test_the_env_cases_cover_every_config_and_both_autoreset_modes():
+def test_the_env_cases_cover_every_config_and_every_episode_end_in_both_autoreset_modes():
     assert {name for name, _ in ENV_CASES} == set(CONFIGS)
     assert {mode for _, mode in ENV_CASES} == {"NextStep", "SameStep"}
+    assert set(ENDS) == set(CONFIGS)
+    assert {(ENDS[name], mode) for name, mode in ENV_CASES} == {
+        (end, mode) for end in set(ENDS.values()) for mode in ("NextStep", "SameStep")}
 
 
 @pytest.mark.parametrize(("name", "autoreset_mode"), ENV_CASES)
@@ -101,10 +107,7 @@ def test_the_cuda_env_is_the_cpu_env_bit_for_bit(name, autoreset_mode):
         counts["collisions"] += int(info["collision"].sum())
         counts["truncations"] += int(cpu_out[3].sum())
     # the episodes ended the ways the config is there for
-    expected = {"pd-random": "collisions", "pd-free": "successes", "voltage": "truncations",
-                "physics": "collisions", "wall": "collisions", "delay-slew": "collisions",
-                "voltage-slew": "truncations", "starts": "truncations"}[name]
-    assert counts[expected] > 0, counts
+    assert counts[ENDS[name]] > 0, counts
     assert np.array_equal(cpu.unwrapped.targets, gpu.unwrapped.targets)
 
 
