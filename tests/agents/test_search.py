@@ -319,7 +319,7 @@ def test_the_tuned_recipes_are_the_published_searches_best_trials():
         best = best[f"{record['control_mode']}-tuned"]
         assert best == record["trials"][record["best"]]["hyperparams"]
         finished = record["trials_run"] == record["trials_asked"]
-        recipes = [recipe for recipe, tuned in TUNED_FROM.items() if tuned.search == record["run"]]
+        recipes = [recipe for recipe, source in TUNED_FROM.items() if source.search == record["run"]]
         if not recipes:
             assert not (finished and spec(record["run"]).trained_on == "c11-starts"), \
                 f"{record['run']}: a finished search on c11-starts that no recipe is tuned from"
